@@ -1,0 +1,76 @@
+"""Rotation helpers built on :mod:`scipy.spatial.transform`.
+
+Tsai's convention (and the paper's Table II) gives the world-to-camera rotation as angles
+(rx, ry, rz) about the fixed world axes X, Y, Z applied in that order:
+
+    R_world2cam = Rz(rz) @ Ry(ry) @ Rx(rx)
+
+which is scipy's extrinsic ``"xyz"`` sequence.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+EULER_SEQ = "xyz"
+
+
+def euler_to_matrix(angles_rad: ArrayLike) -> NDArray[np.float64]:
+    """(3,) angles about X, Y, Z in radians -> (3, 3) rotation Rz @ Ry @ Rx."""
+    return Rotation.from_euler(EULER_SEQ, np.asarray(angles_rad, dtype=float)).as_matrix()
+
+
+def matrix_to_euler(rotation: ArrayLike) -> NDArray[np.float64]:
+    """(3, 3) rotation -> (3,) angles about X, Y, Z in radians, each in (-pi, pi]."""
+    return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_euler(EULER_SEQ)
+
+
+def rotvec_to_matrix(rotvec: ArrayLike) -> NDArray[np.float64]:
+    """(3,) rotation vector, rad -> (3, 3) rotation matrix."""
+    return Rotation.from_rotvec(np.asarray(rotvec, dtype=float)).as_matrix()
+
+
+def matrix_to_rotvec(rotation: ArrayLike) -> NDArray[np.float64]:
+    """(3, 3) rotation matrix -> (3,) rotation vector, rad."""
+    return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_rotvec()
+
+
+def nearest_rotation(m: ArrayLike) -> NDArray[np.float64]:
+    """The rotation matrix closest (Frobenius) to a (3, 3) matrix, by SVD."""
+    u, _, vt = np.linalg.svd(np.asarray(m, dtype=float))
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def rotation_angle_between(r_a: ArrayLike, r_b: ArrayLike) -> float:
+    """Angle (rad) of the rotation taking ``r_a`` to ``r_b``; both (3, 3)."""
+    rel = Rotation.from_matrix(np.asarray(r_a) @ np.asarray(r_b).T)
+    return float(rel.magnitude())
+
+
+def look_at_world2cam(view_direction: ArrayLike, up: ArrayLike = (0.0, 0.0, 1.0)) -> NDArray:
+    """World-to-camera rotation of a camera looking along ``view_direction``.
+
+    The camera frame is OpenCV's: x right, y down, z forward. The image's "up" (-y) is
+    aligned with the projection of ``up`` onto the image plane.
+
+    Args:
+        view_direction: (3,) direction of the optical axis in the world frame.
+        up: (3,) world direction that should appear up in the image.
+
+    Returns:
+        (3, 3) rotation matrix mapping world vectors to camera vectors.
+    """
+    z = np.asarray(view_direction, dtype=float)
+    if not np.all(np.isfinite(z)) or np.linalg.norm(z) == 0:
+        raise ValueError(f"view_direction must be a finite non-zero vector, got {z}")
+    z = z / np.linalg.norm(z)
+    up = np.asarray(up, dtype=float)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:
+        raise ValueError(f"view_direction {z} is parallel to up {up}; give another up vector")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.vstack([x, y, z])

@@ -1,0 +1,1 @@
+"""Instrument models: the total station, its inclination sensor, and the marker assembly."""
