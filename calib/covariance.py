@@ -1,0 +1,97 @@
+"""Numerical Jacobians and parameter covariance of least-squares estimates.
+
+The covariance of a least-squares estimate is ``sigma^2 (J^T J)^-1`` where J is the
+Jacobian of the residuals at the solution and ``sigma^2 = |r|^2 / (M - P)`` the residual
+variance (M residuals, P parameters). Covariances of derived quantities (Euler angles from a
+rotation vector, the camera centre from a translation) follow by first-order propagation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+def central_jacobian(
+    fun: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    x: NDArray[np.float64],
+    steps: NDArray[np.float64],
+    angle_mask: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """Central-difference Jacobian of ``fun`` at ``x``.
+
+    Args:
+        fun: maps (P,) parameters to (M,) outputs.
+        x: (P,) point of evaluation.
+        steps: (P,) absolute step per parameter.
+        angle_mask: optional (M,) mask of outputs that are angles; their differences are
+            wrapped to (-pi, pi] so a derivative taken across the +-pi seam stays right.
+
+    Returns:
+        (M, P) Jacobian.
+    """
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i, h in enumerate(steps):
+        dx = np.zeros_like(x)
+        dx[i] = h
+        diff = fun(x + dx) - fun(x - dx)
+        if angle_mask is not None:
+            diff = np.where(angle_mask, np.angle(np.exp(1j * diff)), diff)
+        cols.append(diff / (2.0 * h))
+    return np.column_stack(cols)
+
+
+def unit_covariance(jac: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(J^T J)^-1 for an (M, P) Jacobian, by SVD; all NaN if J is rank-deficient."""
+    m, p = jac.shape
+    _, s, vt = np.linalg.svd(jac, full_matrices=False)
+    if s[-1] <= s[0] * max(m, p) * np.finfo(float).eps:
+        # Some combination of parameters is not determined by the data at all.
+        return np.full((p, p), np.nan)
+    return (vt.T / s**2) @ vt
+
+
+def least_squares_covariance(
+    jac: NDArray[np.float64], residuals: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], float, int]:
+    """Parameter covariance from the Jacobian and residuals at a least-squares solution.
+
+    Args:
+        jac: (M, P) Jacobian of the residuals.
+        residuals: (M,) residuals at the solution.
+
+    Returns:
+        (P, P) covariance sigma^2 (J^T J)^-1, the residual variance sigma^2 = |r|^2 / dof,
+        and the degrees of freedom dof = M - P. With no degrees of freedom sigma^2 is NaN
+        (the covariance cannot be scaled); with a rank-deficient Jacobian the covariance is
+        all NaN.
+    """
+    m, p = jac.shape
+    dof = m - p
+    sigma2 = float(residuals @ residuals / dof) if dof > 0 else float("nan")
+    return sigma2 * unit_covariance(jac), sigma2, dof
+
+
+def propagate_covariance(
+    cov: NDArray[np.float64],
+    transform: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    x: NDArray[np.float64],
+    steps: NDArray[np.float64],
+    angle_mask: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """First-order covariance of ``transform(x)`` given the covariance of x.
+
+    Args:
+        cov: (P, P) covariance of x.
+        transform: maps (P,) -> (Q,).
+        x: (P,) estimate. steps: (P,) finite-difference steps.
+        angle_mask: (Q,) outputs that are angles (see :func:`central_jacobian`).
+
+    Returns:
+        (Q, Q) covariance.
+    """
+    g = central_jacobian(transform, x, steps, angle_mask)
+    return g @ cov @ g.T

@@ -1,0 +1,114 @@
+"""The result of a calibration: the camera, its parameters with covariance, and metrics."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.checks import DegenerateGeometryWarning
+from calib.metrics import Metrics, evaluate
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """A calibrated camera with the uncertainty of its parameters.
+
+    Attributes:
+        model: "tsai", "tsai-exterior" or "opencv".
+        camera: the calibrated camera (a TsaiCamera or an OpenCVCamera).
+        parameter_names: names of the reported parameters, in SI units (rotation angles in
+            rad about the world X, Y, Z axes; position of the optical centre in m).
+        values: (P,) reported parameter values.
+        covariance: (P, P) covariance of the reported parameters, scaled by the residual
+            variance. NaN where the data do not determine a parameter.
+        sigma_px: residual standard deviation sqrt(|r|^2 / dof), px.
+        dof: degrees of freedom of the fit (2N - number of free parameters).
+        metrics: Table III metrics on the calibration data themselves.
+        initial_camera: the camera from the closed-form stages (None if not applicable).
+        notes: messages a user should read (few degrees of freedom, poor conditioning).
+    """
+
+    model: str
+    camera: Any
+    parameter_names: tuple[str, ...]
+    values: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    sigma_px: float
+    dof: int
+    metrics: Metrics
+    initial_camera: Any = None
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def std(self) -> NDArray[np.float64]:
+        """(P,) standard deviations of the reported parameters."""
+        return np.sqrt(np.diag(self.covariance))
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """Reported parameter values by name (SI units)."""
+        return dict(zip(self.parameter_names, self.values.tolist(), strict=True))
+
+    @property
+    def std_by_name(self) -> dict[str, float]:
+        """Standard deviations by parameter name (SI units)."""
+        return dict(zip(self.parameter_names, self.std.tolist(), strict=True))
+
+    @property
+    def n_points(self) -> int:
+        """Number of correspondences used."""
+        return self.metrics.n_points
+
+
+FEW_DOF = 10  # below this many degrees of freedom the standard deviations are shaky
+ILL_CONDITIONED = 1e8  # condition number of the (column-scaled) normal equations
+
+
+def fit_notes(dof: int, condition: float) -> list[str]:
+    """Messages about a fit that a user should read: few degrees of freedom, bad geometry."""
+    notes = []
+    if dof < FEW_DOF:
+        notes.append(
+            f"the fit has only {dof} degrees of freedom (2 x points - parameters); the "
+            "standard deviations rest on few residuals: use more points"
+        )
+    if condition > ILL_CONDITIONED:
+        notes.append(
+            f"the normal equations are ill-conditioned (condition number {condition:.3g}); "
+            "some parameters are poorly determined by this point geometry"
+        )
+    return notes
+
+
+def make_result(
+    model: str,
+    camera: Any,
+    names: tuple[str, ...],
+    values: NDArray[np.float64],
+    covariance: NDArray[np.float64],
+    sigma2: float,
+    dof: int,
+    points_3d: NDArray[np.float64],
+    pixels: NDArray[np.float64],
+    notes: list[str],
+    initial_camera: Any,
+) -> CalibrationResult:
+    """Assemble a result, evaluate its metrics and emit its notes as warnings."""
+    for n in notes:
+        warnings.warn(n, DegenerateGeometryWarning, stacklevel=3)
+    return CalibrationResult(
+        model=model,
+        camera=camera,
+        parameter_names=names,
+        values=values,
+        covariance=covariance,
+        sigma_px=float(np.sqrt(sigma2)) if np.isfinite(sigma2) else float("nan"),
+        dof=dof,
+        metrics=evaluate(camera, points_3d, pixels),
+        initial_camera=initial_camera,
+        notes=tuple(notes),
+    )

@@ -1,0 +1,275 @@
+"""Tsai's non-coplanar calibration with full optimisation of all 11 parameters.
+
+:func:`calibrate_tsai` runs the closed-form stages of :mod:`calib.tsai_linear`, then refines
+f, cx, cy, sx, kappa1, the rotation and the camera position together with
+``scipy.optimize.least_squares``, minimising the reprojection error in pixels, and reports
+the parameter covariance from the final Jacobian scaled by the residual variance.
+
+:func:`calibrate_exterior` estimates only the pose of a camera whose intrinsics are known,
+for re-calibrating a camera that was moved.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import least_squares
+
+from calib.camera import TsaiCamera, project_tsai
+from calib.checks import (
+    check_correspondences,
+    check_image_size,
+    check_min_points,
+    check_pixels_in_image,
+    check_points_3d,
+    check_spread,
+)
+from calib.covariance import (
+    central_jacobian,
+    least_squares_covariance,
+    propagate_covariance,
+    unit_covariance,
+)
+from calib.result import CalibrationResult, fit_notes, make_result
+from calib.rotation import matrix_to_euler, matrix_to_rotvec, rotvec_to_matrix
+from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
+
+TSAI_PARAMETERS = ("f_px", "cx", "cy", "sx", "kappa1_px", "rx", "ry", "rz", "x", "y", "z")
+EXTERIOR_PARAMETERS = ("rx", "ry", "rz", "x", "y", "z")
+N_TSAI = len(TSAI_PARAMETERS)
+FULL_MIN_POINTS = 6  # 11 parameters need at least 12 residuals
+
+
+def _kappa_scale(image_size: tuple[int, int]) -> float:
+    """Squared half-diagonal of the image, px^2: kappa1 is optimised as kappa1 * this."""
+    w, h = image_size
+    return (w / 2.0) ** 2 + (h / 2.0) ** 2
+
+
+def _pack(cam: TsaiCamera) -> NDArray[np.float64]:
+    """Camera -> internal parameters [f, cx, cy, sx, kappa1*r_ref^2, rotvec(3), C(3)]."""
+    k = cam.kappa1 * _kappa_scale(cam.image_size)
+    rv = matrix_to_rotvec(cam.world2cam_r)
+    return np.concatenate([[cam.f, cam.cx, cam.cy, cam.sx, k], rv, cam.position])
+
+
+def _unpack(q: NDArray[np.float64], image_size: tuple[int, int]) -> TsaiCamera:
+    r = rotvec_to_matrix(q[5:8])
+    k = q[4] / _kappa_scale(image_size)
+    return TsaiCamera(q[0], q[1], q[2], k, q[3], r, -r @ q[8:11], image_size)
+
+
+def _project_q(
+    q: NDArray[np.float64], p3: NDArray[np.float64], kscale: float
+) -> NDArray[np.float64]:
+    r = rotvec_to_matrix(q[5:8])
+    return project_tsai(p3, q[0], q[1], q[2], q[3], q[4] / kscale, r, -r @ q[8:11])
+
+
+def _reported(q: NDArray[np.float64], kscale: float) -> NDArray[np.float64]:
+    """Internal parameters -> reported [f, cx, cy, sx, kappa1, rx, ry, rz, x, y, z]."""
+    euler = matrix_to_euler(rotvec_to_matrix(q[5:8]))
+    return np.concatenate([q[:4], [q[4] / kscale], euler, q[8:11]])
+
+
+def _steps(q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Finite-difference steps for the internal parameters (px, -, rad, m)."""
+    return np.array([1e-4 * abs(q[0]), 1e-3, 1e-3, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5])
+
+
+def _pixel_function(
+    p3: NDArray[np.float64], image_size: tuple[int, int]
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """Internal parameters -> (2N,) projected pixels of the points (NaN-free: 1e6 if invalid)."""
+    kscale = _kappa_scale(image_size)
+
+    def pixels_of(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        uv = _project_q(q, p3, kscale).ravel()
+        return np.where(np.isfinite(uv), uv, 1e6)
+
+    return pixels_of
+
+
+def _reported_covariance(
+    cov_q: NDArray[np.float64], q: NDArray[np.float64], kscale: float
+) -> NDArray[np.float64]:
+    """Covariance of the internal parameters -> covariance of the reported ones."""
+    angle_mask = np.zeros(N_TSAI, dtype=bool)
+    angle_mask[5:8] = True
+    return propagate_covariance(cov_q, lambda x: _reported(x, kscale), q, _steps(q), angle_mask)
+
+
+def predicted_covariance(
+    camera: TsaiCamera, points_3d: ArrayLike, sigma_px: float
+) -> NDArray[np.float64]:
+    """Covariance of the 11 Tsai parameters that a calibration on these points would have.
+
+    The Cramer-Rao bound for independent Gaussian pixel noise of ``sigma_px`` on both
+    coordinates, evaluated at ``camera`` (the truth, or a planned camera): use it to judge a
+    planned set of LED positions before measuring them.
+
+    Args:
+        camera: the (true or planned) camera.
+        points_3d: (N, 3) world points, m.
+        sigma_px: standard deviation of the pixel noise, px.
+
+    Returns:
+        (11, 11) covariance in the order of ``TSAI_PARAMETERS`` (SI units).
+    """
+    p3 = check_points_3d(points_3d)
+    q = _pack(camera)
+    j = central_jacobian(_pixel_function(p3, camera.image_size), q, _steps(q))
+    cov_q = sigma_px**2 * unit_covariance(j)
+    return _reported_covariance(cov_q, q, _kappa_scale(camera.image_size))
+
+
+def calibrate_tsai(
+    points_3d: ArrayLike,
+    pixels: ArrayLike,
+    image_size: tuple[int, int],
+    *,
+    centre: tuple[float, float] | None = None,
+) -> CalibrationResult:
+    """Calibrate a camera with Tsai's non-coplanar method and full optimisation.
+
+    Needs at least 7 non-coplanar points: the linear radial-alignment stage has 7
+    unknowns. The full optimisation of the 11 parameters then needs 12 residuals (6 points),
+    and meaningful standard deviations need a good margin beyond that (a note is attached
+    when the fit has fewer than 10 degrees of freedom).
+
+    Args:
+        points_3d: (N, 3) world points, m.
+        pixels: (N, 2) observed pixels (OpenCV convention).
+        image_size: (width, height), px.
+        centre: the image centre to assume in the linear stage; default the image's centre.
+
+    Returns:
+        The calibrated camera, the 11 parameters (f_px, cx, cy, sx, kappa1_px, rx, ry, rz in
+        rad, x, y, z of the optical centre in m) with their covariance, and the Table III
+        metrics on the calibration data.
+    """
+    p3, uv = check_correspondences(points_3d, pixels)
+    size = check_image_size(image_size)
+    check_min_points(
+        len(p3),
+        LINEAR_MIN_POINTS,
+        "Tsai calibration (its linear radial-alignment stage has 7 unknowns; the full "
+        f"optimisation of {N_TSAI} parameters needs at least {FULL_MIN_POINTS})",
+    )
+    check_pixels_in_image(uv, size)
+    check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
+
+    init = tsai_initial_estimate(p3, uv, size, centre)
+    cam0 = TsaiCamera(
+        init.f, init.cx, init.cy, init.kappa1, init.sx, init.world2cam_r, init.world2cam_t, size
+    )
+    behind = (cam0.to_camera_frame(p3)[:, 2] <= 0).sum()
+    if behind:
+        raise ValueError(
+            f"{int(behind)} of {len(p3)} points lie behind the camera found by the linear "
+            "stage; check that the 3D points and pixels correspond"
+        )
+    kscale = _kappa_scale(size)
+    pixels_of = _pixel_function(p3, size)
+    uv_flat = uv.ravel()
+
+    def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return pixels_of(q) - uv_flat
+
+    def jac(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return central_jacobian(residual, q, _steps(q))
+
+    q0 = _pack(cam0)
+    sol = least_squares(
+        residual, q0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200
+    )
+    q = sol.x
+    cam = _unpack(q, size)
+    if (cam.to_camera_frame(p3)[:, 2] <= 0).any():
+        raise ValueError("the optimisation put points behind the camera; the data are inconsistent")
+
+    j = jac(q)
+    cov_q, sigma2, dof = least_squares_covariance(j, residual(q))
+    cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
+    values = _reported(q, kscale)
+    cov = _reported_covariance(cov_q, q, kscale)
+    return make_result(
+        "tsai", cam, TSAI_PARAMETERS, values, cov, sigma2, dof, p3, uv, fit_notes(dof, cond), cam0
+    )
+
+
+def calibrate_exterior(
+    points_3d: ArrayLike,
+    pixels: ArrayLike,
+    intrinsics: TsaiCamera,
+) -> CalibrationResult:
+    """Estimate the pose of a camera whose intrinsics are known (a camera that was moved).
+
+    The pose is started from OpenCV's PnP on the exactly undistorted pixels and refined by
+    least squares on the reprojection error in pixels. Coplanar points are allowed.
+
+    Args:
+        points_3d: (N, 3) world points, N >= 4, m.
+        pixels: (N, 2) observed pixels.
+        intrinsics: a TsaiCamera whose f, cx, cy, sx, kappa1 and image size are used; its
+            pose is ignored.
+
+    Returns:
+        The camera with the new pose; parameters rx, ry, rz (rad) and x, y, z (m) with their
+        covariance.
+    """
+    import cv2
+
+    p3, uv = check_correspondences(points_3d, pixels)
+    check_min_points(len(p3), 4, "exterior calibration (6 pose parameters, PnP)")
+    check_pixels_in_image(uv, intrinsics.image_size)
+    check_spread(p3, need_3d=False, what="exterior calibration")
+    xy = intrinsics.pixels_to_normalized(uv)
+    ok, rvec, tvec = cv2.solvePnP(
+        p3.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), np.eye(3), None, flags=cv2.SOLVEPNP_SQPNP
+    )
+    if not ok:
+        raise ValueError("PnP found no pose for these points; check the correspondences")
+    r0 = cv2.Rodrigues(rvec)[0]
+    q0 = np.concatenate([matrix_to_rotvec(r0), -r0.T @ tvec.ravel()])
+    f, cx, cy, sx, k1 = intrinsics.f, intrinsics.cx, intrinsics.cy, intrinsics.sx, intrinsics.kappa1
+    uv_flat = uv.ravel()
+
+    def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        r = rotvec_to_matrix(q[:3])
+        res = project_tsai(p3, f, cx, cy, sx, k1, r, -r @ q[3:]).ravel() - uv_flat
+        return np.where(np.isfinite(res), res, 1e6)
+
+    steps = np.array([1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5])
+
+    def jac(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return central_jacobian(residual, q, steps)
+
+    sol = least_squares(residual, q0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    q = sol.x
+    r = rotvec_to_matrix(q[:3])
+    cam = intrinsics.with_(world2cam_r=r, world2cam_t=-r @ q[3:])
+    j = jac(q)
+    cov_q, sigma2, dof = least_squares_covariance(j, residual(q))
+
+    def reported(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.concatenate([matrix_to_euler(rotvec_to_matrix(x[:3])), x[3:]])
+
+    mask = np.array([True, True, True, False, False, False])
+    cov = propagate_covariance(cov_q, reported, q, steps, mask)
+    cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
+    return make_result(
+        "tsai-exterior",
+        cam,
+        EXTERIOR_PARAMETERS,
+        reported(q),
+        cov,
+        sigma2,
+        dof,
+        p3,
+        uv,
+        fit_notes(dof, cond),
+        None,
+    )
