@@ -71,7 +71,7 @@ def calibrate_opencv(
     check_pixels_in_image(uv, size)
     check_spread(p3, need_3d=True, what="OpenCV-model calibration from non-coplanar points")
 
-    init = tsai_initial_estimate(p3, uv, size)
+    init = tsai_initial_estimate(p3, uv, size, check=False)
     k0 = np.array([[init.sx * init.f, 0, init.cx], [0, init.f, init.cy], [0, 0, 1.0]])
     flags = cv2.CALIB_USE_INTRINSIC_GUESS
     if not tangential:

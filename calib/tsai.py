@@ -161,7 +161,7 @@ def calibrate_tsai(
     check_pixels_in_image(uv, size)
     check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
 
-    init = tsai_initial_estimate(p3, uv, size, centre)
+    init = tsai_initial_estimate(p3, uv, size, centre, check=False)
     cam0 = TsaiCamera(
         init.f, init.cx, init.cy, init.kappa1, init.sx, init.world2cam_r, init.world2cam_t, size
     )

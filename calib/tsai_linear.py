@@ -62,6 +62,8 @@ def radial_alignment(
     pixels: NDArray[np.float64],
     cx: float,
     cy: float,
+    *,
+    check: bool = True,
 ) -> RadialAlignment:
     """Stage 1 of Tsai's method: rotation, Tx, Ty and sx from the radial alignment constraint.
 
@@ -69,15 +71,17 @@ def radial_alignment(
         points_3d: (N, 3) non-coplanar world points, N >= 7, m.
         pixels: (N, 2) observed (distorted) pixels.
         cx, cy: the image centre assumed for this stage, px.
+        check: validate the inputs (callers that already did may skip it).
 
     Returns:
         The rotation (3, 3), Tx and Ty (m), sx, and the condition number of the system.
     """
     p3, uv = check_correspondences(points_3d, pixels)
-    check_min_points(
-        len(p3), LINEAR_MIN_POINTS, "Tsai's linear radial-alignment stage (7 unknowns)"
-    )
-    check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
+    if check:
+        check_min_points(
+            len(p3), LINEAR_MIN_POINTS, "Tsai's linear radial-alignment stage (7 unknowns)"
+        )
+        check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
     xd = uv[:, 0] - cx  # = sx * x_d
     yd = uv[:, 1] - cy
     a = np.column_stack([yd[:, None] * p3, yd, -xd[:, None] * p3])
@@ -128,6 +132,8 @@ def tsai_initial_estimate(
     pixels: NDArray[np.float64],
     image_size: tuple[int, int],
     centre: tuple[float, float] | None = None,
+    *,
+    check: bool = True,
 ) -> TsaiInitialEstimate:
     """Tsai's closed-form stages followed by the (f, Tz, kappa1) fit.
 
@@ -136,6 +142,7 @@ def tsai_initial_estimate(
         pixels: (N, 2) observed pixels.
         image_size: (width, height), px.
         centre: image centre to assume, px; default the geometric centre of the image.
+        check: validate the inputs (callers that already did may skip it).
 
     Returns:
         An estimate of all 11 parameters, good enough to start the full optimisation.
@@ -143,7 +150,7 @@ def tsai_initial_estimate(
     p3, uv = check_correspondences(points_3d, pixels)
     w, h = image_size
     cx, cy = centre if centre is not None else ((w - 1) / 2.0, (h - 1) / 2.0)
-    ra = radial_alignment(p3, uv, cx, cy)
+    ra = radial_alignment(p3, uv, cx, cy, check=check)
     yd = uv[:, 1] - cy
     r = ra.world2cam_r
     f, tz = _focal_and_tz(p3, yd, r, ra.ty)
@@ -174,6 +181,12 @@ def tsai_initial_estimate(
 
     fit = least_squares(residual, [f, tz, 0.0], method="lm", xtol=1e-12, ftol=1e-12)
     f, tz, k_scaled = fit.x
+    if not (f > 0 and np.isfinite(fit.x).all()):
+        raise ValueError(
+            f"Tsai's (f, Tz, kappa1) stage found no valid focal length (f = {f:.4g} px): the "
+            f"point geometry does not determine the camera (linear-stage condition number "
+            f"{ra.condition:.3g}); spread the points in depth and over the image"
+        )
     t = np.array([tx, ty, tz])
     return TsaiInitialEstimate(
         float(f), float(cx), float(cy), ra.sx, float(k_scaled / r_ref2), r, t, ra.condition
