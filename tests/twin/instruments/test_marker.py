@@ -1,0 +1,108 @@
+"""Marker assembly: geometry checks, pose from three cubes, LED positions and covariance."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import cube_centroid, fit_marker_pose, led_positions
+from twin.instruments.noise import cartesian_covariance
+from twin.instruments.polar import cartesian_to_polar, polar_to_cartesian
+from twin.instruments.shot import measure_points
+from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+
+MARKER = MarkerAssembly()
+
+
+def test_default_geometry_looks_like_the_paper():
+    leds, cubes = MARKER.leds_body, MARKER.cubes_body
+    assert leds.shape == (4, 3)
+    assert cubes.shape == (3, 3)
+    assert len(np.unique(leds[:, 2])) == 4  # four different heights
+    assert 0.8 <= np.ptp(leds[:, 2]) <= 1.2  # spread over about 1 m
+    sides = np.linalg.norm(cubes - np.roll(cubes, 1, axis=0), axis=1)
+    assert sides.min() > 0.2  # cubes far enough apart
+    np.testing.assert_allclose(MARKER.reference_body, cubes.mean(axis=0))
+    with pytest.raises(ValueError, match="read-only"):
+        MARKER.cubes_body[0, 0] = 1.0  # read-only
+
+
+def test_marker_rejects_bad_geometry():
+    with pytest.raises(ValueError, match="collinear"):
+        MarkerAssembly(cubes_body=np.array([[0, 0, 1.0], [0.1, 0, 1.0], [0.2, 0, 1.0]]))
+    with pytest.raises(ValueError, match=r"cubes_body must have shape \(3, 3\)"):
+        MarkerAssembly(cubes_body=np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="leds_body"):
+        MarkerAssembly(leds_body=np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        MarkerAssembly(leds_body=np.full((4, 3), np.nan))
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.tuples(st.floats(-np.pi, np.pi), st.floats(-0.3, 0.3), st.floats(-0.3, 0.3)),
+    st.tuples(st.floats(-100, 100), st.floats(-100, 100), st.floats(-2, 2)),
+)
+def test_noise_free_pose_and_leds_are_exact(angles, translation):
+    rot = Rotation.from_euler("ZYX", angles).as_matrix()
+    t = np.array(translation)
+    cubes = MARKER.cubes_body @ rot.T + t
+    pose = fit_marker_pose(cubes, MARKER)
+    np.testing.assert_allclose(pose.rotation, rot, atol=1e-9)
+    np.testing.assert_allclose(pose.translation, t, atol=1e-9)
+    assert pose.rms_residual < 1e-9
+    leds, cov = led_positions(pose, MARKER)
+    np.testing.assert_allclose(leds, MARKER.leds_body @ rot.T + t, atol=1e-9)
+    assert np.all(cov == 0)
+
+
+def test_led_covariance_matches_monte_carlo():
+    spec, incl = TotalStationSpec(), InclinometerSpec()
+    rng = np.random.default_rng(11)
+    rot = Rotation.from_euler("z", 0.4).as_matrix()
+    t = np.array([15.0, 6.0, -0.75])  # a child 16 m away, floor 0.75 m below the instrument
+    cubes = MARKER.cubes_body @ rot.T + t
+    leds_true = MARKER.leds_body @ rot.T + t
+    n = 3000
+    polar, _ = measure_points(np.tile(cubes, (n, 1, 1)), 0.0, 0.0, spec, incl, rng)
+    measured = polar_to_cartesian(polar)
+    nees = np.empty(n)
+    for i in range(n):
+        pose = fit_marker_pose(measured[i], MARKER, cartesian_covariance(polar[i], spec, incl))
+        leds, cov = led_positions(pose, MARKER)
+        e = (leds - leds_true)[3]  # the lowest LED, 1.05 m below the cubes
+        nees[i] = e @ np.linalg.solve(cov[9:12, 9:12], e)
+    # 3 degrees of freedom: mean 3, standard error sqrt(6 / n) = 0.045
+    assert nees.mean() == pytest.approx(3.0, abs=0.2)
+
+
+def test_centroid_and_its_covariance():
+    cubes = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
+    cov = cartesian_covariance(cartesian_to_polar(cubes), TotalStationSpec())
+    point, point_cov = cube_centroid(cubes, cov)
+    np.testing.assert_allclose(point, cubes.mean(axis=0))
+    np.testing.assert_allclose(point_cov, cov.sum(axis=0) / 9, rtol=1e-12, atol=1e-18)
+
+
+@pytest.mark.parametrize("order", [(0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)])
+def test_mislabelled_cubes_show_in_the_residual(order):
+    # The default triangle is scalene: no wrong labelling fits (a wrong prism lock shows
+    # as a centimetre residual, not millimetres).
+    cubes = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
+    assert fit_marker_pose(cubes[list(order)], MARKER).rms_residual > 0.008
+
+
+def test_pose_bad_input():
+    good = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"shape \(3, 3\)"):
+        fit_marker_pose(good[:2], MARKER)
+    bad = good.copy()
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        fit_marker_pose(bad, MARKER)
+    with pytest.raises(ValueError, match="covariance"):
+        fit_marker_pose(good, MARKER, np.eye(4))
+    with pytest.raises(ValueError, match="symmetric"):
+        fit_marker_pose(good, MARKER, np.triu(np.ones((9, 9))))

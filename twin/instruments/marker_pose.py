@@ -1,0 +1,159 @@
+"""Pose of a marker assembly from its three measured corner cubes, and its LED positions.
+
+The pose is the rigid transform ``body2frame`` (rotation R, translation t) that best maps
+the assembly's cube positions onto the measured ones in the least-squares sense (Kabsch /
+Umeyama without scale, via :meth:`scipy.spatial.transform.Rotation.align_vectors`).
+``frame`` is whatever frame the cubes were measured in (levelled instrument or world).
+
+Covariances are first order. A pose perturbation is (d_theta, d_t), 6 values: a small
+rotation vector applied on the left (``R -> exp([d_theta]x) R``, rad, in ``frame``) and a
+translation (m). The fit is unweighted, so its covariance is the sandwich
+``A Sigma A^T`` with ``A = (J^T J)^-1 J^T`` and ``Sigma`` the (9, 9) cube covariance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from twin.instruments.marker import MarkerAssembly
+
+
+def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    zero = np.zeros_like(x)
+    return np.stack(
+        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
+        axis=-2,
+    )
+
+
+def check_cubes(cubes: ArrayLike, name: str = "cubes") -> NDArray[np.float64]:
+    """Return measured cube positions as a finite (3, 3) array, or raise ValueError."""
+    arr = np.asarray(cubes, dtype=float)
+    if arr.shape != (3, 3):
+        raise ValueError(f"{name} must have shape (3, 3) (three cubes, x y z), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or inf: {arr.tolist()}")
+    return arr
+
+
+def check_cube_covariance(covariance: ArrayLike | None) -> NDArray[np.float64]:
+    """(3, 3, 3) per-cube or (9, 9) joint covariance, m^2 -> (9, 9); None -> zeros."""
+    if covariance is None:
+        return np.zeros((9, 9))
+    c = np.asarray(covariance, dtype=float)
+    if c.shape == (3, 3, 3):
+        full = np.zeros((9, 9))
+        for i in range(3):
+            full[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = c[i]
+        c = full
+    if c.shape != (9, 9):
+        raise ValueError(f"cube covariance must have shape (3, 3, 3) or (9, 9), got {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise ValueError("cube covariance contains NaN or inf")
+    if not np.allclose(c, c.T, rtol=1e-9, atol=1e-18):
+        raise ValueError("cube covariance must be symmetric")
+    return c
+
+
+@dataclass(frozen=True, eq=False)
+class MarkerPose:
+    """Estimated pose of a marker assembly.
+
+    Attributes:
+        rotation: (3, 3) body2frame rotation.
+        translation: (3,) body2frame translation (the body origin in ``frame``), m.
+        covariance: (6, 6) covariance of (d_theta rad, d_t m), see the module text.
+        rms_residual: root-mean-square distance between the fitted and measured cubes, m.
+            Millimetres are noise; centimetres mean a wrong prism or a wrong assembly.
+    """
+
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    rms_residual: float
+
+    def transform(self, points_body: ArrayLike) -> NDArray[np.float64]:
+        """Map (N, 3) body points to ``frame``, m."""
+        return np.asarray(points_body, dtype=float) @ self.rotation.T + self.translation
+
+    def point_jacobian(self, points_body: ArrayLike) -> NDArray[np.float64]:
+        """(N, 3, 6) Jacobian of the mapped points with respect to (d_theta, d_t)."""
+        rp = np.asarray(points_body, dtype=float) @ self.rotation.T
+        n = rp.shape[0]
+        return np.concatenate([-_skew(rp), np.broadcast_to(np.eye(3), (n, 3, 3))], axis=-1)
+
+
+def fit_marker_pose(
+    cubes_measured: ArrayLike,
+    marker: MarkerAssembly,
+    covariance: ArrayLike | None = None,
+) -> MarkerPose:
+    """Rigid pose of the assembly from its three measured cubes.
+
+    Args:
+        cubes_measured: (3, 3) measured cube positions, rows in the order of
+            ``marker.cubes_body``, m.
+        marker: the assembly geometry.
+        covariance: (3, 3, 3) per-cube or (9, 9) joint covariance of the measured cubes,
+            m^2; None gives a zero pose covariance.
+
+    Returns:
+        The pose and its (6, 6) covariance.
+    """
+    m = check_cubes(cubes_measured, "cubes_measured")
+    sigma = check_cube_covariance(covariance)
+    b = marker.cubes_body
+    b_mean, m_mean = b.mean(axis=0), m.mean(axis=0)
+    rot, _ = Rotation.align_vectors(m - m_mean, b - b_mean)
+    r = rot.as_matrix()
+    t = m_mean - r @ b_mean
+    residual = m - (b @ r.T + t)
+    pose = MarkerPose(
+        rotation=r,
+        translation=t,
+        covariance=np.zeros((6, 6)),
+        rms_residual=float(np.sqrt(np.mean(np.sum(residual**2, axis=1)))),
+    )
+    jac = pose.point_jacobian(b).reshape(9, 6)
+    a = np.linalg.solve(jac.T @ jac, jac.T)
+    cov = a @ sigma @ a.T
+    object.__setattr__(pose, "covariance", 0.5 * (cov + cov.T))
+    return pose
+
+
+def led_positions(
+    pose: MarkerPose, marker: MarkerAssembly
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Positions of the LEDs and their joint covariance.
+
+    Returns:
+        ``(leds, covariance)``: (N_led, 3) LED positions in the pose's frame, m, and their
+        (3 N_led, 3 N_led) joint covariance, m^2 (rows x0 y0 z0 x1 ...).
+    """
+    leds = pose.transform(marker.leds_body)
+    jac = pose.point_jacobian(marker.leds_body).reshape(-1, 6)
+    cov = jac @ pose.covariance @ jac.T
+    return leds, 0.5 * (cov + cov.T)
+
+
+def cube_centroid(
+    cubes_measured: ArrayLike, covariance: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The assembly's reference point (mean of the three measured cubes) and its covariance.
+
+    Args:
+        cubes_measured: (3, 3) measured cubes, m.
+        covariance: (3, 3, 3) or (9, 9) cube covariance, m^2; None gives zeros.
+
+    Returns:
+        ``(point, covariance)``: (3,) m and (3, 3) m^2.
+    """
+    m = check_cubes(cubes_measured, "cubes_measured")
+    sigma = check_cube_covariance(covariance)
+    avg = np.tile(np.eye(3), 3) / 3.0  # (3, 9)
+    return m.mean(axis=0), avg @ sigma @ avg.T
