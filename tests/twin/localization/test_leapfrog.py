@@ -1,0 +1,109 @@
+"""Monte Carlo of the straight 85 m leapfrog: consistency (NEES) and formation geometry."""
+
+import numpy as np
+import pytest
+
+from twin.instruments.total_station import ARCSEC
+from twin.localization.leapfrog import (
+    Formation,
+    LeapfrogConfig,
+    evaluate,
+    run_cps,
+    simulate_leapfrog,
+)
+from twin.localization.sequence import StepKind
+
+N_RUNS = 500
+SOLVERS = ("closed_form", "wls")
+
+
+@pytest.fixture(scope="module")
+def results():
+    out = {}
+    for seed, formation in enumerate(Formation):
+        data = simulate_leapfrog(
+            LeapfrogConfig(formation=formation), N_RUNS, np.random.default_rng(100 + seed)
+        )
+        out[formation] = {solver: evaluate(data, solver) for solver in SOLVERS}
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("formation", list(Formation))
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_predicted_covariance_is_consistent(results, formation, solver):
+    res = results[formation][solver]
+    # 3D position NEES: mean 3; standard error sqrt(6 / 500) = 0.11, tolerance 15 % = 4 SE.
+    assert 2.55 <= res.position_nees.mean() <= 3.45
+    # yaw NEES: mean 1; standard error sqrt(2 / 500) = 0.063, tolerance 20 % = 3 SE.
+    assert 0.8 <= res.yaw_nees.mean() <= 1.2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_side_by_side_is_clearly_worse_and_the_prediction_says_so(results, solver):
+    line = results[Formation.IN_LINE][solver]
+    side = results[Formation.SIDE_BY_SIDE][solver]
+    actual = np.median(side.position_error_norm) / np.median(line.position_error_norm)
+    predicted = np.median(side.predicted_position_rms) / np.median(line.predicted_position_rms)
+    yaw_actual = np.median(np.abs(side.yaw_error)) / np.median(np.abs(line.yaw_error))
+    yaw_predicted = np.median(np.sqrt(side.covariance[:, 0, 0] / line.covariance[:, 0, 0]))
+    assert actual > 3.0
+    assert predicted > 3.0
+    assert yaw_actual > 3.0
+    assert yaw_predicted > 3.0
+    assert predicted == pytest.approx(actual, rel=0.3)
+
+
+@pytest.mark.slow
+def test_wls_is_no_worse_than_the_closed_form(results):
+    for formation in Formation:
+        cf, wls = results[formation]["closed_form"], results[formation]["wls"]
+        assert np.median(wls.predicted_position_rms) <= np.median(cf.predicted_position_rms)
+        assert np.mean(wls.position_error_norm**2) < 1.1 * np.mean(cf.position_error_norm**2)
+
+
+def test_simulation_is_reproducible_bit_for_bit():
+    cfg = LeapfrogConfig(route_length=20.0)
+    a = simulate_leapfrog(cfg, 3, np.random.default_rng(5))
+    b = simulate_leapfrog(cfg, 3, np.random.default_rng(5))
+    c = simulate_leapfrog(cfg, 3, np.random.default_rng(6))
+    for name in ("parent_truth", "children_truth", "before", "after", "before_cov", "after_cov"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert not np.array_equal(a.after, c.after)
+    ra, rb = evaluate(a, "wls"), evaluate(b, "wls")
+    np.testing.assert_array_equal(ra.position_error, rb.position_error)
+
+
+def test_one_run_is_a_full_cps_record():
+    cfg = LeapfrogConfig()
+    data = simulate_leapfrog(cfg, 1, np.random.default_rng(0))
+    seq = run_cps(data, 0, "wls")
+    assert cfg.n_steps == 17
+    assert len(seq.steps) == 2 * 17
+    assert seq.steps[-1].kind is StepKind.PARENT_MOVED
+    # the truth has the geometry of the formation
+    np.testing.assert_allclose(data.parent_truth[0, -1, 1], 85.0, atol=0.2)
+    assert np.all(np.diff(data.children_truth[0, :, 0, 0]) > 4.0)
+    # measured reference points are where the truth says (within a few mm)
+    from twin.localization.planar import level2world
+
+    truth = data.parent_truth[0]
+    for k in (0, 16):
+        world = level2world(data.after[0, k], truth[k + 1, 0], truth[k + 1, 1:])
+        np.testing.assert_allclose(world, data.children_truth[0, k], atol=0.01)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"step_length": 4.0}, "whole number of steps"),
+        ({"max_tilt": 500 * ARCSEC}, "working range"),
+        ({"near_gap": 1.0}, "minimum range"),
+        ({"formation": "in_line"}, "Formation"),
+        ({"route_length": -1.0}, "route_length"),
+    ],
+)
+def test_config_rejects_bad_values(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        LeapfrogConfig(**kwargs)

@@ -1,0 +1,1 @@
+"""Cooperative positioning (CPS): solvers, covariance propagation and the step record."""

@@ -1,0 +1,285 @@
+"""The CPS sequence: a record of every step and the joint estimate of all robots.
+
+The state is ``x = (parent yaw, parent x, y, z, child_1 xyz, ..., child_N xyz)`` in the
+world frame with its full joint covariance ``P``. Two kinds of step alternate:
+
+- children moved: they stopped and the parent measured them. Each measured child's state
+  is replaced by ``Rz(yaw) m + t`` (paper eq. 1); its covariance inherits the parent's
+  (``J_parent P J_parent^T + Rz Cov(m) Rz^T``) and so do its cross terms with every other
+  robot. That is how two children end up correlated with each other.
+- parent moved: it measured two or more stationary children and solved its own pose
+  (closed form or WLS). The parent's state is replaced by the solution; its covariance is
+  ``G_w P_cc G_w^T + G_m Cov(m) G_m^T`` and its cross terms follow from ``G_w``.
+
+Both updates are one linear map ``x' = A x + B noise``, ``P' = A P A^T + B Cov B^T``, so
+nothing is double-counted and the error grows with distance as the paper's Table III shows.
+The same object serves a campaign, a Monte Carlo run, a gym environment and a later
+global adjustment (which reads :attr:`CpsSequence.steps`).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from twin.localization.checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
+from twin.localization.closed_form import solve_closed_form
+from twin.localization.observation import ChildObservation
+from twin.localization.planar import rot_z, rot_z_derivative
+from twin.localization.pose import CpsSolution, ParentPose
+from twin.localization.wls import solve_wls
+
+SOLVERS = ("wls", "closed_form")
+
+
+class StepKind(enum.Enum):
+    """What happened in a CPS step."""
+
+    CHILDREN_MOVED = "children_moved"
+    PARENT_MOVED = "parent_moved"
+
+
+@dataclass(frozen=True, eq=False)
+class CpsStep:
+    """One recorded step.
+
+    Attributes:
+        index: 0, 1, ... in the order the steps happened.
+        kind: which robots moved.
+        timestamp: time of the step, s.
+        moved: names of the robots that moved before the measurements ("parent" or children).
+        observations: what the parent measured at this step.
+        parent: the parent's pose estimate after the step.
+        children_world: (N, 3) children's world estimates after the step, in the order of
+            :attr:`CpsSequence.children`; NaN rows for children not yet placed.
+        state_covariance: (4 + 3N, 4 + 3N) joint covariance after the step.
+        solution: the CPS solution (parent steps only).
+    """
+
+    index: int
+    kind: StepKind
+    timestamp: float
+    moved: tuple[str, ...]
+    observations: tuple[ChildObservation, ...]
+    parent: ParentPose
+    children_world: NDArray[np.float64]
+    state_covariance: NDArray[np.float64]
+    solution: CpsSolution | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("children_world", "state_covariance"):
+            arr = np.array(getattr(self, name), dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+
+class CpsSequence:
+    """Joint estimate of a parent and its children along a CPS run, with the step record.
+
+    Args:
+        children: the children's names, in state order.
+        initial_pose: the parent's pose at its first station; default the world origin
+            with zero covariance (the world is the parent's first levelled frame).
+        solver: ``"wls"`` (any number >= 2 of children) or ``"closed_form"`` (exactly two).
+        min_baseline, max_yaw_std: passed to the solver (see :mod:`.checks`).
+    """
+
+    def __init__(
+        self,
+        children: Sequence[str],
+        initial_pose: ParentPose | None = None,
+        *,
+        solver: str = "wls",
+        min_baseline: float = DEFAULT_MIN_BASELINE,
+        max_yaw_std: float = DEFAULT_MAX_YAW_STD,
+    ) -> None:
+        names = tuple(children)
+        if len(names) < 2:
+            raise ValueError(f"CPS needs at least two children, got {list(names)}")
+        if len(set(names)) != len(names) or "parent" in names:
+            raise ValueError(f"children names must be unique and not 'parent', got {list(names)}")
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        pose = initial_pose if initial_pose is not None else ParentPose(0.0, np.zeros(3))
+        self._children = names
+        self._index = {name: i for i, name in enumerate(names)}
+        self._solver = solver
+        self._min_baseline = min_baseline
+        self._max_yaw_std = max_yaw_std
+        n = 4 + 3 * len(names)
+        self._x = np.full(n, np.nan)
+        self._x[:4] = pose.vector
+        self._p = np.zeros((n, n))
+        self._p[:4, :4] = pose.covariance
+        self._known = np.zeros(len(names), dtype=bool)
+        self._time = pose.timestamp
+        self._steps: list[CpsStep] = []
+
+    # -- read access ---------------------------------------------------------------------
+    @property
+    def children(self) -> tuple[str, ...]:
+        """The children's names in state order."""
+        return self._children
+
+    @property
+    def solver(self) -> str:
+        """The CPS solver used for parent steps."""
+        return self._solver
+
+    @property
+    def parent(self) -> ParentPose:
+        """The parent's current pose estimate with its covariance."""
+        return ParentPose(self._x[0], self._x[1:4], self._p[:4, :4].copy(), self._time)
+
+    @property
+    def state(self) -> NDArray[np.float64]:
+        """(4 + 3N,) current joint state (NaN for children not yet placed)."""
+        return self._x.copy()
+
+    @property
+    def state_covariance(self) -> NDArray[np.float64]:
+        """(4 + 3N, 4 + 3N) current joint covariance."""
+        return self._p.copy()
+
+    @property
+    def steps(self) -> tuple[CpsStep, ...]:
+        """Every step so far, in order."""
+        return tuple(self._steps)
+
+    def child_position(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(3,) world position and (3, 3) covariance of a child's reference point."""
+        k = self._child_index(name)
+        if not self._known[k]:
+            raise ValueError(f"child {name!r} has not been measured yet")
+        s = slice(4 + 3 * k, 7 + 3 * k)
+        return self._x[s].copy(), self._p[s, s].copy()
+
+    # -- steps ---------------------------------------------------------------------------
+    def children_moved(
+        self, observations: Sequence[ChildObservation], timestamp: float | None = None
+    ) -> CpsStep:
+        """Children moved and stopped; the parent (not moved) measured them.
+
+        Each observed child is placed in the world from the parent's current estimate.
+        """
+        obs = self._check_observations(observations, minimum=1)
+        yaw, t = self._x[0], self._x[1:4]
+        rot, drot = rot_z(yaw), rot_z_derivative(yaw)
+        n = self._x.size
+        a = np.eye(n)
+        b = np.zeros((n, 3 * len(obs)))
+        noise = np.zeros((3 * len(obs), 3 * len(obs)))
+        x_new = self._x.copy()
+        for j, o in enumerate(obs):
+            k = self._index[o.child]
+            s = slice(4 + 3 * k, 7 + 3 * k)
+            x_new[s] = rot @ o.point_level + t
+            a[s, :] = 0.0
+            a[s, 0] = drot @ o.point_level
+            a[s, 1:4] = np.eye(3)
+            b[s, 3 * j : 3 * j + 3] = rot
+            noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
+            self._known[k] = True
+        self._commit(x_new, a, b, noise)
+        return self._record(StepKind.CHILDREN_MOVED, obs, tuple(o.child for o in obs), timestamp)
+
+    def parent_moved(
+        self, observations: Sequence[ChildObservation], timestamp: float | None = None
+    ) -> CpsStep:
+        """The parent moved and measured two or more stationary children; solve its pose."""
+        obs = self._check_observations(observations, minimum=2)
+        ks = [self._index[o.child] for o in obs]
+        unknown = [o.child for o, k in zip(obs, ks, strict=True) if not self._known[k]]
+        if unknown:
+            raise ValueError(
+                f"children {unknown} were never placed in the world; measure them with "
+                "children_moved before the parent moves"
+            )
+        cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
+        world = self._x[cols].reshape(-1, 3)
+        level = np.array([o.point_level for o in obs])
+        cov_w = self._p[np.ix_(cols, cols)]
+        cov_m = np.array([o.covariance for o in obs])
+        stamp = self._stamp(obs, timestamp)
+        kwargs = {
+            "timestamp": stamp,
+            "min_baseline": self._min_baseline,
+            "max_yaw_std": self._max_yaw_std,
+        }
+        if self._solver == "wls":
+            solution = solve_wls(world, level, cov_w, cov_m, **kwargs)
+        else:
+            solution = solve_closed_form(world, level, cov_w, cov_m, **kwargs)
+        n = self._x.size
+        a = np.eye(n)
+        a[:4, :] = 0.0
+        a[:4, cols] = solution.children_jacobian
+        b = np.zeros((n, 3 * len(obs)))
+        b[:4, :] = solution.measurement_jacobian
+        noise = np.zeros((3 * len(obs), 3 * len(obs)))
+        for j, o in enumerate(obs):
+            noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
+        x_new = self._x.copy()
+        x_new[:4] = solution.pose.vector
+        self._commit(x_new, a, b, noise)
+        return self._record(StepKind.PARENT_MOVED, obs, ("parent",), stamp, solution)
+
+    # -- internals -----------------------------------------------------------------------
+    def _child_index(self, name: str) -> int:
+        try:
+            return self._index[name]
+        except KeyError:
+            raise ValueError(
+                f"unknown child {name!r}; children are {list(self._children)}"
+            ) from None
+
+    def _check_observations(
+        self, observations: Sequence[ChildObservation], minimum: int
+    ) -> tuple[ChildObservation, ...]:
+        obs = tuple(observations)
+        if len(obs) < minimum:
+            raise ValueError(
+                f"this step needs at least {minimum} child observation(s), got {len(obs)}"
+            )
+        names = [o.child for o in obs]
+        for name in names:
+            self._child_index(name)
+        if len(set(names)) != len(names):
+            raise ValueError(f"a child is observed twice in one step: {names}")
+        return obs
+
+    def _stamp(self, obs: tuple[ChildObservation, ...], timestamp: float | None) -> float:
+        return float(max(o.timestamp for o in obs)) if timestamp is None else float(timestamp)
+
+    def _commit(self, x_new: NDArray, a: NDArray, b: NDArray, noise: NDArray) -> None:
+        # Children not placed yet have NaN state and zero covariance rows; A keeps them so.
+        p_new = a @ self._p @ a.T + b @ noise @ b.T
+        self._x = x_new
+        self._p = 0.5 * (p_new + p_new.T)
+
+    def _record(
+        self,
+        kind: StepKind,
+        obs: tuple[ChildObservation, ...],
+        moved: tuple[str, ...],
+        timestamp: float | None,
+        solution: CpsSolution | None = None,
+    ) -> CpsStep:
+        self._time = self._stamp(obs, timestamp)
+        step = CpsStep(
+            index=len(self._steps),
+            kind=kind,
+            timestamp=self._time,
+            moved=moved,
+            observations=obs,
+            parent=self.parent,
+            children_world=self._x[4:].reshape(-1, 3).copy(),
+            state_covariance=self._p.copy(),
+            solution=solution,
+        )
+        self._steps.append(step)
+        return step
