@@ -1,0 +1,176 @@
+"""A bad scenario gets an error naming the file, the key and what was expected."""
+
+from __future__ import annotations
+
+import pytest
+
+from twin.scenario import ScenarioError, load_scenario
+
+from .helpers import variant
+
+
+def _error(path) -> ScenarioError:
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    err = info.value
+    assert err.file == str(path)
+    assert str(path) in str(err)
+    return err
+
+
+def _only(err: ScenarioError, key: str):
+    keys = [i.key for i in err.issues]
+    assert key in keys, f"{key} not among {keys}"
+    return next(i for i in err.issues if i.key == key)
+
+
+def test_misspelt_key(tmp_path):
+    path = variant(tmp_path, "misspelt", [("[[space.obstacles]]", "[[space.obstacels]]")])
+    issue = _only(_error(path), "space.obstacels")
+    assert issue.problem == "unknown key"
+    assert "obstacles" in issue.expected
+    assert "floor_patches" in issue.expected
+    assert "space.obstacels: unknown key" in str(_error(path))
+
+
+def test_misspelt_key_in_an_array_of_tables(tmp_path):
+    path = variant(tmp_path, "misspelt2", [("view_direction =", "view_dirction =")])
+    err = _error(path)
+    issue = _only(err, "cameras[0].view_dirction")
+    assert "view_direction" in issue.expected
+    # The correctly spelt key is now missing, and that is reported too.
+    assert _only(err, "cameras[0].view_direction").problem == "missing"
+
+
+def test_wrong_type(tmp_path):
+    path = variant(tmp_path, "wrongtype", [("f = 400.0", 'f = "400"')])
+    issue = _only(_error(path), "cameras[0].f")
+    assert issue.value == "400"
+    assert issue.expected == "a number"
+
+
+def test_wrong_length(tmp_path):
+    path = variant(tmp_path, "wronglen", [("size = [10.0, 6.0, 3.0]", "size = [10.0, 6.0]")])
+    _only(_error(path), "space.size[2]")
+
+
+def test_camera_outside_the_space(tmp_path):
+    path = variant(
+        tmp_path, "camout", [("position = [6.0, 0.0, 1.6]", "position = [9.0, 0.0, 1.6]")]
+    )
+    issue = _only(_error(path), "cameras[0].position")
+    assert "outside the space" in issue.problem
+    assert issue.value == [9.0, 0.0, 1.6]
+    assert "x in [-2, 8]" in issue.expected
+
+
+def test_camera_above_the_ceiling(tmp_path):
+    path = variant(
+        tmp_path, "camhigh", [("position = [6.0, 0.0, 1.6]", "position = [6.0, 0.0, 3.0]")]
+    )
+    assert "outside the space" in _only(_error(path), "cameras[0].position").problem
+
+
+def test_route_through_a_wall(tmp_path):
+    path = variant(
+        tmp_path,
+        "routewall",
+        [
+            (
+                "waypoints = [[0.0, 0.0], [4.0, 0.0]]",
+                "waypoints = [[0.0, 0.0], [4.0, 0.0], [4.0, 5.0]]",
+            )
+        ],
+    )
+    issue = _only(_error(path), "route.waypoints[1]")
+    assert "segment 1->2" in issue.problem
+    assert "wall" in issue.problem
+    assert issue.expected == "a route inside the space"
+
+
+def test_route_through_an_obstacle(tmp_path):
+    path = variant(
+        tmp_path,
+        "routeobst",
+        [
+            (
+                "waypoints = [[0.0, 0.0], [4.0, 0.0]]",
+                "waypoints = [[0.0, 0.0], [6.5, -1.0], [6.5, -2.5]]",
+            )
+        ],
+    )
+    err = _error(path)
+    issues = [i for i in err.issues if i.key.startswith("route.waypoints")]
+    assert any("pillar" in i.problem for i in issues)
+
+
+SCREENS = """[[space.obstacles]]
+name = "screen"
+center = [0.5, 1.8]
+size = [3.0, 0.2, 3.0]
+
+[[space.obstacles]]
+name = "screen2"
+center = [2.5, 0.0]
+size = [0.2, 3.2, 3.0]
+
+[[space.floor_patches]]"""
+
+
+def test_station_that_cannot_see_the_camera_view(tmp_path):
+    # Two tall screens between the station and the camera's view of the floor.
+    path = variant(
+        tmp_path,
+        "blocked",
+        [
+            ("[[space.floor_patches]]", SCREENS),
+            ("start_xy = [1.5, 1.5]", "start_xy = [1.5, 2.4]"),
+        ],
+    )
+    err = _error(path)
+    issue = _only(err, "calibration.visits[0].station")
+    assert "sees only" in issue.problem
+    assert "cam1" in issue.problem
+    assert "min_visible_fraction" in issue.expected
+
+
+def test_station_too_far_for_the_instrument(tmp_path):
+    path = variant(
+        tmp_path, "toofar", [("[route]", "[noise.total_station]\nrange_max = 1.5\n\n[route]")]
+    )
+    issue = _only(_error(path), "calibration.visits[0].station")
+    assert "sees only 5 %" in issue.problem
+
+
+def test_unknown_camera_in_a_visit(tmp_path):
+    path = variant(tmp_path, "unknowncam", [('camera = "cam1"', 'camera = "cam9"')])
+    issue = _only(_error(path), "calibration.visits[0].camera")
+    assert issue.value == "cam9"
+    assert "cam1" in issue.expected
+
+
+def test_instrument_spec_rejects_inconsistent_values(tmp_path):
+    path = variant(
+        tmp_path,
+        "badspec",
+        [("[route]", "[noise.total_station]\nrange_min = 5.0\nrange_max = 2.0\n\n[route]")],
+    )
+    issue = _only(_error(path), "noise.total_station")
+    assert "range_max" in issue.problem
+
+
+def test_toml_syntax_error(tmp_path):
+    path = variant(tmp_path, "syntax", [("seed = 1", "seed = = 1")])
+    issue = _only(_error(path), "<syntax>")
+    assert "line" in issue.problem
+
+
+def test_every_problem_is_reported_at_once(tmp_path):
+    path = variant(tmp_path, "several", [("seed = 1", "seed = -1"), ("f = 400.0", "f = -400.0")])
+    keys = {i.key for i in _error(path).issues}
+    assert {"seed", "cameras[0].f"} <= keys
+
+
+def test_duplicate_names(tmp_path):
+    path = variant(tmp_path, "dup", [('name = "child2"', 'name = "child1"')])
+    assert "repeated: child1" in str(_error(path))

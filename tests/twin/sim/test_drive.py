@@ -1,0 +1,115 @@
+"""Driving: reach a goal and stop, report collisions, drift in odometry, tilt on slopes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from twin.sim.drive import DriveController, DrivePhase
+from twin.sim.platforms import PIONEER3DX
+from twin.sim.scene import build_world
+
+from .helpers import scenario
+
+
+@pytest.mark.parametrize(("robot", "bearing"), [("child1", 0.0), ("parent", -0.3)])
+def test_robot_reaches_a_goal_5_m_away_and_stops(robot, bearing):
+    world = build_world(scenario("smoke"))
+    start = world.robot_pose(robot)
+    goal = start[:2] + 5.0 * np.array([math.cos(bearing), math.sin(bearing)])
+    result = world.drive_to(robot, goal, goal_yaw=0.5)
+    assert result.status == "reached", result
+    assert result.position_error < 0.03
+    assert abs((result.pose[2] - 0.5 + math.pi) % (2 * math.pi) - math.pi) < math.radians(1.0)
+    # It stops: a second later it has not moved.
+    world.run(1.0)
+    assert np.linalg.norm(world.robot_pose(robot)[:2] - result.pose[:2]) < 2e-3
+    # It took a plausible time for its speed limit.
+    assert result.duration > 5.0 / world.robots[robot].platform.max_speed
+    assert world.warnings() == {}
+
+
+def test_speed_and_acceleration_limits_are_kept():
+    world = build_world(scenario("smoke"))
+    ctl = world.drive("child1", (6.5, 1.5))
+    speeds = []
+    while not ctl.done and world.time < 20.0:
+        world.step()
+        speeds.append(np.linalg.norm(world.data.qvel[world.robots["child1"].qvel :][:2]))
+    speeds = np.array(speeds)
+    assert speeds.max() <= PIONEER3DX.max_speed * 1.05
+    # Acceleration over 0.1 s windows (the wheel servos lag the commands by a tick or two).
+    accel = (speeds[5:] - speeds[:-5]) / (5 * world.control_period)
+    assert accel.max() <= PIONEER3DX.max_accel * 1.3
+    assert accel.min() >= -PIONEER3DX.max_accel * 1.3
+
+
+def test_driving_into_a_wall_reports_the_collision():
+    world = build_world(scenario("smoke"))
+    result = world.drive_to("child2", (1.5, -6.0))  # the south wall is at y = -3
+    assert result.status == "collision"
+    assert result.collisions[0].robot == "child2"
+    assert result.collisions[0].other == "wall_south"
+    assert result.collisions[0].position[1] == pytest.approx(-3.0, abs=0.05)
+    assert world.collisions == list(result.collisions)
+    # Stopped at the wall, not through it.
+    assert world.robot_pose("child2")[1] > -3.0
+
+
+def test_driving_into_another_robot_reports_the_collision():
+    world = build_world(scenario("smoke"))
+    result = world.drive_to("child1", (0.0, 0.0))  # where the parent stands
+    assert result.status == "collision"
+    assert result.collisions[0].other == "parent/chassis"
+
+
+def test_odometry_drifts_and_is_reproducible():
+    runs = []
+    for _ in range(2):
+        world = build_world(scenario("smoke"))
+        world.drive_to("child1", (6.5, 1.5))
+        world.drive_to("child1", (6.5, -1.0))
+        world.drive_to("child1", (-0.5, -1.0))
+        runs.append((world.odometry["child1"].pose, world.robot_pose("child1")))
+    (odo, truth), (odo2, truth2) = runs
+    np.testing.assert_array_equal(odo, odo2)  # same seed, same result
+    np.testing.assert_array_equal(truth, truth2)
+    error = np.linalg.norm(odo[:2] - truth[:2])
+    assert 0.005 < error < 1.0  # about 15 m of travel: centimetres to decimetres
+
+
+def test_odometry_depends_on_the_seed():
+    raw = scenario("smoke").model_dump(exclude={"source"})
+    raw["seed"] = 2
+    from twin.scenario import scenario_from_dict
+
+    a, b = build_world(scenario("smoke")), build_world(scenario_from_dict(raw))
+    for w in (a, b):
+        w.drive_to("child1", (6.5, 1.5))
+    assert not np.array_equal(a.odometry["child1"].pose, b.odometry["child1"].pose)
+
+
+def test_parent_tilts_on_a_tilted_floor_patch():
+    world = build_world(scenario("smoke"))
+    patch = world.scenario.space.floor_patches[0]
+    world.drive_to("parent", patch.center, goal_yaw=0.0)
+    world.run(1.0)
+    tilt = world.tilt("parent")
+    expected = np.radians(np.array(patch.tilt_arcmin) / 60.0)
+    # The tilt about the body's y axis follows the patch (the parent heads along x).
+    np.testing.assert_allclose(tilt, expected, atol=np.radians(0.5 / 60.0))
+
+
+def test_controller_phases():
+    ctl = DriveController(PIONEER3DX, (1.0, 1.0), goal_yaw=0.0)
+    ctl.update((0.0, 0.0, 0.0), 0.02)
+    assert ctl.phase is DrivePhase.TURN_TO_GOAL
+    v, _ = ctl.update((0.0, 0.0, math.pi / 4), 0.02)
+    assert ctl.phase is DrivePhase.DRIVE
+    assert v > 0
+    for _ in range(100):  # at the goal: braking ramps the commands down to zero
+        ctl.update((1.0, 1.0, 0.0), 0.02)
+    assert ctl.done
+    assert ctl.update((1.0, 1.0, 0.0), 0.02) == (0.0, 0.0)

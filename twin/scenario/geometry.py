@@ -1,0 +1,163 @@
+"""Plan geometry of a scenario, pure numpy: obstacles as boxes, camera views on the floor,
+segment tests. Used to validate scenarios and to summarise them, without MuJoCo.
+
+Obstacles are treated as their bounding boxes (stairs included), which is conservative
+for lines of sight.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from calib.camera import TsaiCamera
+from twin.scenario.schema import Obstacle, Space
+
+
+def world2box(obstacle: Obstacle, points: ArrayLike) -> NDArray[np.float64]:
+    """(N, 2) or (N, 3) world points -> the same points in the obstacle's frame (centre of
+    the footprint, axes along its sides; z unchanged)."""
+    p = np.array(points, dtype=float, ndmin=2)
+    c, s = np.cos(obstacle.yaw), np.sin(obstacle.yaw)
+    dx = p[:, 0] - obstacle.center[0]
+    dy = p[:, 1] - obstacle.center[1]
+    out = p.copy()
+    out[:, 0] = c * dx + s * dy
+    out[:, 1] = -s * dx + c * dy
+    return out
+
+
+def inside_obstacle(
+    obstacle: Obstacle, points_xy: ArrayLike, margin: float = 0.0
+) -> NDArray[np.bool_]:
+    """(N,) True where (N, 2) floor points lie in the footprint grown by ``margin`` (m)."""
+    q = world2box(obstacle, points_xy)
+    hx, hy = 0.5 * obstacle.size[0] + margin, 0.5 * obstacle.size[1] + margin
+    return (np.abs(q[:, 0]) <= hx) & (np.abs(q[:, 1]) <= hy)
+
+
+def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDArray[np.bool_]:
+    """(N,) True where (N, 2) points lie inside the walls, at least ``margin`` (m) from them."""
+    p = np.array(points_xy, dtype=float, ndmin=2)
+    (x0, x1), (y0, y1) = space.x_range, space.y_range
+    return (
+        (p[:, 0] >= x0 + margin)
+        & (p[:, 0] <= x1 - margin)
+        & (p[:, 1] >= y0 + margin)
+        & (p[:, 1] <= y1 - margin)
+    )
+
+
+def segment_blocked(
+    space: Space, starts: ArrayLike, ends: ArrayLike, obstacles: tuple[Obstacle, ...] = ()
+) -> NDArray[np.bool_]:
+    """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
+
+    Args:
+        space: gives the floor height (obstacles stand on the floor).
+        starts, ends: (N, 3) world points, m.
+        obstacles: the boxes to test (default: all of the space's obstacles).
+    """
+    a = np.array(starts, dtype=float, ndmin=2)
+    b = np.array(ends, dtype=float, ndmin=2)
+    a, b = np.broadcast_arrays(a, b)
+    blocked = np.zeros(len(a), dtype=bool)
+    for ob in obstacles or space.obstacles:
+        qa, qb = world2box(ob, a), world2box(ob, b)
+        lo = np.array([-0.5 * ob.size[0], -0.5 * ob.size[1], space.floor_z])
+        hi = np.array([0.5 * ob.size[0], 0.5 * ob.size[1], space.floor_z + ob.size[2]])
+        d = qb - qa
+        t0 = np.zeros(len(a))
+        t1 = np.ones(len(a))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for k in range(3):
+                inv = 1.0 / d[:, k]
+                ta = (lo[k] - qa[:, k]) * inv
+                tb = (hi[k] - qa[:, k]) * inv
+                tmin = np.where(np.isfinite(inv), np.minimum(ta, tb), -np.inf)
+                tmax = np.where(np.isfinite(inv), np.maximum(ta, tb), np.inf)
+                outside = ~np.isfinite(inv) & ((qa[:, k] < lo[k]) | (qa[:, k] > hi[k]))
+                tmin = np.where(outside, np.inf, tmin)
+                t0 = np.maximum(t0, tmin)
+                t1 = np.minimum(t1, tmax)
+        blocked |= t0 <= t1
+    return blocked
+
+
+def floor_view(
+    camera: TsaiCamera, floor_z: float, max_range: float = 50.0, grid: int = 24
+) -> NDArray[np.float64]:
+    """Floor points seen by a camera, on a regular grid of its image.
+
+    Args:
+        camera: the camera (world frame).
+        floor_z: height of the floor, m.
+        max_range: rays that meet the floor farther than this (horizontal distance, m) are
+            dropped, as are rays that do not meet it.
+        grid: samples along each image axis.
+
+    Returns:
+        (N, 3) world points on the floor, m (N may be 0).
+    """
+    w, h = camera.image_size
+    u, v = np.meshgrid(np.linspace(0, w - 1, grid), np.linspace(0, h - 1, grid))
+    origins, dirs = camera.unproject(np.column_stack([u.ravel(), v.ravel()]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (floor_z - origins[:, 2]) / dirs[:, 2]
+    ok = np.isfinite(t) & (t > 0)
+    pts = origins[ok] + t[ok, None] * dirs[ok]
+    horiz = np.linalg.norm(pts[:, :2] - camera.position[:2], axis=1)
+    return pts[horiz <= max_range]
+
+
+def floor_view_corners(
+    camera: TsaiCamera, floor_z: float, max_range: float = 50.0
+) -> NDArray[np.float64]:
+    """Where the four image corners' rays meet the floor (a trapezoid), (K, 2), m.
+
+    Corners whose rays miss the floor (above the horizon) are clipped to ``max_range``
+    along the ray's horizontal direction. K = 4 unless the camera sees no floor (K = 0).
+    """
+    w, h = camera.image_size
+    corners = np.array([[0, h - 1], [w - 1, h - 1], [w - 1, 0], [0, 0]], dtype=float)
+    origins, dirs = camera.unproject(corners)
+    out = []
+    for o, d in zip(origins, dirs, strict=True):
+        if d[2] < 0:
+            t = (floor_z - o[2]) / d[2]
+            p = o[:2] + t * d[:2]
+            if np.linalg.norm(p - o[:2]) <= max_range:
+                out.append(p)
+                continue
+        hd = d[:2] / max(np.linalg.norm(d[:2]), 1e-12)
+        out.append(o[:2] + max_range * hd)
+    pts = np.asarray(out)
+    if not np.any(dirs[:, 2] < 0):
+        return np.zeros((0, 2))
+    return pts
+
+
+def polygon_area(points_xy: ArrayLike) -> float:
+    """Area of a simple polygon given by (K, 2) vertices in order, m^2."""
+    p = np.asarray(points_xy, dtype=float)
+    if len(p) < 3:
+        return 0.0
+    x, y = p[:, 0], p[:, 1]
+    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def polyline_points(waypoints: ArrayLike, spacing: float) -> tuple[NDArray, NDArray]:
+    """Points every ``spacing`` m along a polyline.
+
+    Returns:
+        points: (N, 2) points, m.
+        segment: (N,) index of the segment each point lies on.
+    """
+    p = np.asarray(waypoints, dtype=float)
+    pts, seg = [], []
+    for i in range(len(p) - 1):
+        n = max(2, int(np.ceil(np.linalg.norm(p[i + 1] - p[i]) / spacing)) + 1)
+        t = np.linspace(0.0, 1.0, n)[:, None]
+        pts.append(p[i] + t * (p[i + 1] - p[i]))
+        seg.append(np.full(n, i))
+    return np.vstack(pts), np.concatenate(seg)

@@ -1,0 +1,473 @@
+"""The scenario's schema: frozen, typed pydantic models.
+
+Units are SI (metres, seconds) except where a field's name says otherwise (``*_deg`` in
+degrees, ``*_arcmin`` in arc-minutes, pixels for camera intrinsics). Positions are in the
+world frame W: the parent's instrument frame at its first station, z up. The floor lies at
+``space.floor_z`` (by default minus the instrument's height above the floor).
+
+This module checks each value on its own (types, ranges, lengths); cross-checks between
+sections (a camera inside the space, a route clear of obstacles, a station that sees its
+camera's view) live in :mod:`twin.scenario.checks`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
+
+from calib.camera import TsaiCamera
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.sim.odometry import OdometrySpec
+from twin.sim.platforms import INSTRUMENT_HEIGHT, PLATFORMS, Platform
+
+Vec2 = tuple[float, float]
+Vec3 = tuple[float, float, float]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
+Positive = Annotated[float, Field(gt=0.0)]
+
+
+class Frozen(BaseModel):
+    """Base of every scenario model: immutable, unknown keys rejected, no type coercion."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", strict=True)
+
+
+# -- the space -------------------------------------------------------------------------------
+class Obstacle(Frozen):
+    """An inaccessible area that blocks robots and lines of sight, standing on the floor.
+
+    Attributes:
+        name: identifier (also the MuJoCo geom name prefix).
+        kind: ``box`` (a closed structure) or ``stairs`` (steps rising along its local x).
+        center: (x, y) of the footprint's centre, m.
+        size: (x, y, z) footprint length and width and height, m.
+        yaw_deg: rotation of the footprint about z, degrees.
+        steps: number of steps (stairs only).
+    """
+
+    name: Name
+    kind: Literal["box", "stairs"] = "box"
+    center: Vec2
+    size: tuple[Positive, Positive, Positive]
+    yaw_deg: float = 0.0
+    steps: Annotated[int, Field(ge=2, le=60)] = 12
+
+    @property
+    def yaw(self) -> float:
+        """Rotation about z, rad."""
+        return math.radians(self.yaw_deg)
+
+
+class FloorPatch(Frozen):
+    """A rectangle of floor tilted by a few arc-minutes (uneven ground).
+
+    The patch is a thin slab whose lowest edge is flush with the floor.
+
+    Attributes:
+        name: identifier.
+        center: (x, y) of the patch's centre, m.
+        size: (x, y) extent, m.
+        tilt_arcmin: rotation about the world x and y axes, arc-minutes (|tilt| <= 60).
+    """
+
+    name: Name
+    center: Vec2
+    size: tuple[Positive, Positive]
+    tilt_arcmin: tuple[
+        Annotated[float, Field(ge=-60.0, le=60.0)], Annotated[float, Field(ge=-60.0, le=60.0)]
+    ]
+
+    @property
+    def tilt(self) -> tuple[float, float]:
+        """Rotation about world x and y, rad."""
+        return (
+            math.radians(self.tilt_arcmin[0] / 60.0),
+            math.radians(self.tilt_arcmin[1] / 60.0),
+        )
+
+
+class Lighting(Frozen):
+    """Lights of the space.
+
+    Attributes:
+        shadows: whether the lights cast shadows (3-5x slower rendering).
+        ambient: ambient light level of the overhead lights, 0..1.
+        diffuse: diffuse light level of the overhead lights, 0..1.
+        spacing: distance between overhead lights, m.
+    """
+
+    shadows: bool = False
+    ambient: Annotated[float, Field(ge=0.0, le=1.0)] = 0.4
+    diffuse: Annotated[float, Field(ge=0.0, le=1.0)] = 0.6
+    spacing: Annotated[float, Field(gt=1.0)] = 15.0
+
+
+class Space(Frozen):
+    """The space the robots work in: a rectangular room with walls.
+
+    Attributes:
+        size: (x, y, z) inner length, width and height, m.
+        origin: (x, y) world coordinates of the inner corner with the smallest x and y, m.
+        floor_z: height of the floor in the world frame, m (the world frame is the
+            instrument frame, so the floor is below it).
+        wall_thickness: m.
+        obstacles: inaccessible areas.
+        floor_patches: tilted patches of floor.
+        lighting: the lights.
+    """
+
+    size: tuple[Positive, Positive, Positive]
+    origin: Vec2
+    floor_z: float = -INSTRUMENT_HEIGHT
+    wall_thickness: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
+    obstacles: tuple[Obstacle, ...] = ()
+    floor_patches: tuple[FloorPatch, ...] = ()
+    lighting: Lighting = Lighting()
+
+    @property
+    def x_range(self) -> Vec2:
+        """(min, max) of x inside the walls, m."""
+        return (self.origin[0], self.origin[0] + self.size[0])
+
+    @property
+    def y_range(self) -> Vec2:
+        """(min, max) of y inside the walls, m."""
+        return (self.origin[1], self.origin[1] + self.size[1])
+
+    @property
+    def z_range(self) -> Vec2:
+        """(floor, ceiling) heights in the world frame, m."""
+        return (self.floor_z, self.floor_z + self.size[2])
+
+
+# -- cameras ---------------------------------------------------------------------------------
+class CameraConfig(Frozen):
+    """A fixed camera: pose by position and view direction (image upright), Tsai intrinsics.
+
+    Attributes:
+        name: identifier (also the MuJoCo camera name).
+        position: (3,) optical centre in the world frame, m.
+        view_direction: (3,) direction of the optical axis in the world frame (any length).
+        f: focal length, px. cx, cy: principal point, px (OpenCV: (0, 0) is the centre of
+            the top-left pixel). kappa1: radial distortion, 1/px^2 (Tsai). sx: scale factor.
+        image_size: (width, height), px.
+    """
+
+    name: Name
+    position: Vec3
+    view_direction: Vec3
+    f: Positive
+    cx: float
+    cy: float
+    kappa1: float = 0.0
+    sx: Annotated[float, Field(gt=0.5, lt=2.0)] = 1.0
+    image_size: tuple[Annotated[int, Field(ge=8, le=4096)], Annotated[int, Field(ge=8, le=4096)]]
+
+    @field_validator("view_direction")
+    @classmethod
+    def _direction_ok(cls, v: Vec3) -> Vec3:
+        n = math.sqrt(sum(c * c for c in v))
+        if n < 1e-9:
+            raise ValueError("must be a non-zero vector")
+        if math.hypot(v[0], v[1]) / n < 1e-3:
+            raise ValueError("must not be vertical (the image's up direction is undefined)")
+        return v
+
+    def tsai(self) -> TsaiCamera:
+        """The camera as a :class:`calib.camera.TsaiCamera` (ground truth of the twin)."""
+        return TsaiCamera.from_pose(
+            f=self.f,
+            cx=self.cx,
+            cy=self.cy,
+            kappa1=self.kappa1,
+            sx=self.sx,
+            position=self.position,
+            view_direction=self.view_direction,
+            image_size=self.image_size,
+        )
+
+
+# -- robots ----------------------------------------------------------------------------------
+class RobotConfig(Frozen):
+    """A robot and its start pose on the floor.
+
+    Attributes:
+        name: identifier; also the prefix of its MuJoCo names (``name/``).
+        model: ``pioneer3at`` or ``pioneer3dx``.
+        start_xy: (x, y) of the body origin (on the floor under the robot's centre), m.
+        start_yaw_deg: heading (x forward) about z, degrees.
+    """
+
+    name: Name
+    model: Literal["pioneer3at", "pioneer3dx"]
+    start_xy: Vec2
+    start_yaw_deg: float = 0.0
+
+    @property
+    def start_yaw(self) -> float:
+        """Heading, rad."""
+        return math.radians(self.start_yaw_deg)
+
+    @property
+    def platform(self) -> Platform:
+        """Dimensions and motion limits of the robot."""
+        return PLATFORMS[self.model]
+
+
+class Robots(Frozen):
+    """The parent robot and its children.
+
+    Attributes:
+        parent: the robot carrying the total station.
+        children: the robots carrying marker assemblies (two for CPS).
+    """
+
+    parent: RobotConfig
+    children: tuple[RobotConfig, ...] = Field(min_length=1, max_length=8)
+
+    @field_validator("parent")
+    @classmethod
+    def _parent_model(cls, v: RobotConfig) -> RobotConfig:
+        if v.model != "pioneer3at":
+            raise ValueError("the parent must be a pioneer3at (it carries the total station)")
+        return v
+
+    @field_validator("children")
+    @classmethod
+    def _children_model(cls, v: tuple[RobotConfig, ...]) -> tuple[RobotConfig, ...]:
+        for child in v:
+            if child.model != "pioneer3dx":
+                raise ValueError(f"child {child.name!r} must be a pioneer3dx (it has the mast)")
+        return v
+
+    @property
+    def all(self) -> tuple[RobotConfig, ...]:
+        """The parent first, then the children."""
+        return (self.parent, *self.children)
+
+
+# -- marker ----------------------------------------------------------------------------------
+_DEFAULT_MARKER = MarkerAssembly()
+_ROWS3 = tuple(tuple(float(c) for c in row) for row in _DEFAULT_MARKER.cubes_body)
+_ROWS4 = tuple(tuple(float(c) for c in row) for row in _DEFAULT_MARKER.leds_body)
+
+
+class MarkerConfig(Frozen):
+    """Geometry of the marker assembly in the child's body frame (m); defaults from
+    :class:`twin.instruments.marker.MarkerAssembly`.
+
+    Attributes:
+        cubes: three corner-cube reflection points, m.
+        leds: four LED centres, m.
+    """
+
+    cubes: tuple[Vec3, Vec3, Vec3] = _ROWS3  # type: ignore[assignment]
+    leds: tuple[Vec3, Vec3, Vec3, Vec3] = _ROWS4  # type: ignore[assignment]
+
+    @field_validator("cubes")
+    @classmethod
+    def _not_collinear(cls, v: tuple[Vec3, Vec3, Vec3]) -> tuple[Vec3, Vec3, Vec3]:
+        p = np.asarray(v, dtype=float)
+        if np.linalg.norm(np.cross(p[1] - p[0], p[2] - p[0])) < 1e-4:
+            raise ValueError("the three corner cubes must not be collinear")
+        return v
+
+    @field_validator("cubes", "leds")
+    @classmethod
+    def _above_floor(cls, v: tuple[Vec3, ...]) -> tuple[Vec3, ...]:
+        for row in v:
+            if not 0.25 <= row[2] <= 2.5:
+                raise ValueError("heights must lie between 0.25 m (above the body) and 2.5 m")
+        return v
+
+    @model_validator(mode="after")
+    def _assembly_accepts(self) -> MarkerConfig:
+        self.assembly()
+        return self
+
+    def assembly(self) -> MarkerAssembly:
+        """The geometry as a :class:`MarkerAssembly`."""
+        return MarkerAssembly(
+            cubes_body=np.asarray(self.cubes, dtype=float),
+            leds_body=np.asarray(self.leds, dtype=float),
+        )
+
+
+# -- instrument noise: generated from the instrument dataclasses, so they stay in step ------
+class _SpecConfig(Frozen):
+    """Base of the configs generated from instrument dataclasses (see below)."""
+
+    _spec_cls: typing.ClassVar[type]
+
+    def spec(self) -> typing.Any:
+        """The dataclass instance these values describe."""
+        return self._spec_cls(**{name: getattr(self, name) for name in type(self).model_fields})
+
+    @model_validator(mode="after")
+    def _spec_accepts(self) -> typing.Self:
+        # The dataclass's own checks (ranges, consistency) run here, so a bad value is
+        # reported with its key in the scenario file.
+        self.spec()
+        return self
+
+
+def _model_from_dataclass(cls: type, doc: str) -> type[_SpecConfig]:
+    """A frozen pydantic model with the fields, types and defaults of dataclass ``cls``."""
+    hints = typing.get_type_hints(cls)
+    fields: dict[str, typing.Any] = {}
+    for f in dataclasses.fields(cls):
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = Field(default_factory=f.default_factory)
+        else:
+            default = ...
+        fields[f.name] = (hints[f.name], default)
+    model = create_model(f"{cls.__name__}Config", __base__=_SpecConfig, **fields)
+    model.__doc__ = doc
+    model._spec_cls = cls
+    return model
+
+
+TotalStationConfig = _model_from_dataclass(
+    TotalStationSpec, "Total station noise (SI units); fields and defaults of TotalStationSpec."
+)
+InclinometerConfig = _model_from_dataclass(
+    InclinometerSpec, "Inclination sensor noise (SI units); fields of InclinometerSpec."
+)
+OdometryConfig = _model_from_dataclass(
+    OdometrySpec, "Wheel odometry drift; fields and defaults of OdometrySpec."
+)
+
+
+class Noise(Frozen):
+    """Instrument noise; every field defaults to the paper's numbers."""
+
+    total_station: TotalStationConfig = TotalStationConfig()  # type: ignore[valid-type]
+    inclinometer: InclinometerConfig = InclinometerConfig()  # type: ignore[valid-type]
+    odometry: OdometryConfig = OdometryConfig()  # type: ignore[valid-type]
+
+
+# -- route and calibration plan --------------------------------------------------------------
+class Route(Frozen):
+    """The reference route of the group (the parent's path), a polyline on the floor.
+
+    Attributes:
+        waypoints: (x, y) points, m, at least two.
+    """
+
+    waypoints: tuple[Vec2, ...] = Field(min_length=2)
+
+    @property
+    def length(self) -> float:
+        """Length of the polyline, m."""
+        p = np.asarray(self.waypoints, dtype=float)
+        return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+    @property
+    def turns_deg(self) -> tuple[float, ...]:
+        """Heading change at each interior waypoint, degrees (positive = left)."""
+        p = np.asarray(self.waypoints, dtype=float)
+        d = np.diff(p, axis=0)
+        heading = np.arctan2(d[:, 1], d[:, 0])
+        turn = (np.diff(heading) + np.pi) % (2 * np.pi) - np.pi
+        return tuple(float(t) for t in np.degrees(turn))
+
+
+class CalibrationVisit(Frozen):
+    """One calibration of one camera: where the parent stands while the child moves.
+
+    Attributes:
+        camera: name of the camera.
+        station: (x, y) of the parent's body origin on the floor, m.
+        yaw_deg: parent's heading there, degrees.
+    """
+
+    camera: Name
+    station: Vec2
+    yaw_deg: float = 0.0
+
+
+class Calibration(Frozen):
+    """The calibration plan.
+
+    Attributes:
+        visits: the visits in the order they are made (a camera may be visited again).
+        min_visible_fraction: the least fraction of a camera's floor view that the total
+            station must see from the visit's station (line of sight to the corner cubes,
+            within range), for the station to be accepted.
+    """
+
+    visits: tuple[CalibrationVisit, ...] = Field(min_length=1)
+    min_visible_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
+
+
+class SimConfig(Frozen):
+    """Simulation settings.
+
+    Attributes:
+        timestep: physics time step, s.
+    """
+
+    timestep: Annotated[float, Field(ge=2e-4, le=0.01)] = 0.002
+
+
+class Scenario(Frozen):
+    """A complete scenario. See ``scenarios/paper_hall.toml`` for a documented example.
+
+    Attributes:
+        name: identifier.
+        description: free text.
+        seed: root seed of every random generator of a run.
+        space, cameras, robots, marker, noise, route, calibration, sim: the sections.
+        source: the file it was loaded from (set by the loader).
+    """
+
+    name: Name
+    description: str = ""
+    seed: Annotated[int, Field(ge=0)]
+    space: Space
+    cameras: tuple[CameraConfig, ...] = Field(min_length=1)
+    robots: Robots
+    marker: MarkerConfig = MarkerConfig()
+    noise: Noise = Noise()
+    route: Route
+    calibration: Calibration
+    sim: SimConfig = SimConfig()
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> Scenario:
+        groups = {
+            "cameras": [c.name for c in self.cameras],
+            "robots": [r.name for r in self.robots.all],
+            "space.obstacles": [o.name for o in self.space.obstacles]
+            + [p.name for p in self.space.floor_patches],
+        }
+        for key, names in groups.items():
+            dup = sorted({n for n in names if names.count(n) > 1})
+            if dup:
+                raise ValueError(f"{key}: names must be unique, repeated: {', '.join(dup)}")
+        return self
+
+    def camera(self, name: str) -> CameraConfig:
+        """The camera called ``name``; KeyError naming the known cameras otherwise."""
+        for cam in self.cameras:
+            if cam.name == name:
+                return cam
+        known = ", ".join(c.name for c in self.cameras)
+        raise KeyError(f"no camera {name!r} in scenario {self.name!r}; cameras: {known}")
+
+    def robot(self, name: str) -> RobotConfig:
+        """The robot called ``name``; KeyError naming the known robots otherwise."""
+        for robot in self.robots.all:
+            if robot.name == name:
+                return robot
+        known = ", ".join(r.name for r in self.robots.all)
+        raise KeyError(f"no robot {name!r} in scenario {self.name!r}; robots: {known}")

@@ -1,0 +1,474 @@
+"""Composing a scenario into a MuJoCo world, and the :class:`World` that runs it.
+
+The scene is built in code: the space (:mod:`twin.sim.hall`), one attached device per
+robot (prefix ``NAME/``), and one fixed camera per scenario camera (its name as given).
+The MuJoCo world frame *is* the twin's world frame W (the parent's instrument frame at
+its start, z up); the floor lies at ``scenario.space.floor_z``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from calib.camera import TsaiCamera
+from twin.scenario.schema import Scenario
+from twin.sim.camera import add_camera, tsai_from_model
+from twin.sim.drive import DriveController, DriveTolerance
+from twin.sim.hall import SPACE_GROUP, build_space
+from twin.sim.odometry import WheelOdometry
+from twin.sim.robots import N_CUBES, N_LEDS, RobotHandle, attach_robot
+
+# Stream of numpy.random.SeedSequence reserved for odometry errors.
+ODOMETRY_STREAM = 1
+
+# LED appearance when lit (the "off" state is the material in the MJCF file).
+LED_ON_RGBA = (1.0, 0.25, 0.15, 1.0)
+LED_ON_EMISSION = 1.0
+
+# Geom groups that block lines of sight: the space (0) and the robots' visual geoms (2).
+SIGHT_GROUPS = np.array([1, 0, 1, 0, 0, 0], dtype=np.uint8)
+
+
+def build_spec(scenario: Scenario) -> mujoco.MjSpec:
+    """The scene of ``scenario`` as an uncompiled :class:`mujoco.MjSpec`."""
+    spec = mujoco.MjSpec()
+    spec.modelname = scenario.name
+    spec.compiler.degree = False
+    spec.option.timestep = scenario.sim.timestep
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    max_w = max(c.image_size[0] for c in scenario.cameras)
+    max_h = max(c.image_size[1] for c in scenario.cameras)
+    spec.visual.global_.offwidth = max(640, max_w)
+    spec.visual.global_.offheight = max(480, max_h)
+    spec.visual.map.znear = 0.01
+    spec.visual.map.zfar = 200.0
+    spec.stat.extent = float(max(scenario.space.size))
+    build_space(spec, scenario.space)
+    marker = scenario.marker.assembly()
+    for robot in scenario.robots.all:
+        attach_robot(spec, robot, scenario.space.floor_z, marker)
+    for cam in scenario.cameras:
+        add_camera(spec.worldbody, cam.name, cam.tsai())
+    return spec
+
+
+@dataclass(frozen=True)
+class Collision:
+    """A robot's chassis touching a wall, an obstacle or another robot.
+
+    Attributes:
+        time: simulation time when the contact was first seen, s.
+        robot: the robot's name.
+        other: name of the geom it touched (e.g. ``wall_north``, ``pillar``, ``child2/chassis``).
+        position: (3,) contact point in the world frame, m.
+    """
+
+    time: float
+    robot: str
+    other: str
+    position: NDArray[np.float64] = field(repr=False)
+
+
+@dataclass(frozen=True)
+class DriveResult:
+    """Outcome of :meth:`World.drive_to`.
+
+    Attributes:
+        robot: the robot's name.
+        status: ``reached``, ``collision`` or ``timeout``.
+        pose: (3,) true final pose (x, y, yaw), m and rad.
+        position_error: distance from the goal position, m (true pose).
+        duration: simulated time taken, s.
+        collisions: the collisions of this robot during the drive.
+    """
+
+    robot: str
+    status: str
+    pose: NDArray[np.float64]
+    position_error: float
+    duration: float
+    collisions: tuple[Collision, ...]
+
+    @property
+    def reached(self) -> bool:
+        """Whether the controller reported the goal reached."""
+        return self.status == "reached"
+
+
+class World:
+    """A scenario's MuJoCo model and data, with robots, odometry, LEDs and cameras.
+
+    Args:
+        scenario: a validated scenario.
+        control_period: period of the drive controllers and odometry updates, s.
+
+    Attributes:
+        scenario, spec, model, data: the scenario and its MuJoCo objects.
+        robots: handle of each robot by name (``parent``, ``child1``...).
+        odometry: wheel odometry of each robot by name.
+        collisions: every collision seen so far, in time order.
+    """
+
+    def __init__(self, scenario: Scenario, control_period: float = 0.02) -> None:
+        self.scenario = scenario
+        self.spec = build_spec(scenario)
+        self.model = self.spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.substeps = max(1, round(control_period / self.model.opt.timestep))
+        self.control_period = self.substeps * self.model.opt.timestep
+        self.robots = {
+            r.name: RobotHandle.from_model(self.model, r.name, r.platform)
+            for r in scenario.robots.all
+        }
+        self._chassis_robot = {h.chassis: h.name for h in self.robots.values()}
+        self._is_chassis = np.zeros(self.model.ngeom, dtype=bool)
+        self._is_chassis[list(self._chassis_robot)] = True
+        self._led_off = {}
+        for child in scenario.robots.children:
+            for k in range(N_LEDS):
+                mid = self._id(mujoco.mjtObj.mjOBJ_MATERIAL, f"{child.name}/led{k}")
+                self._led_off[mid] = (
+                    self.model.mat_rgba[mid].copy(),
+                    float(self.model.mat_emission[mid]),
+                )
+        self.reset()
+
+    # -- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the start poses, time 0, LEDs off, odometry re-seeded from the scenario."""
+        mujoco.mj_resetData(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)
+        seeds = np.random.SeedSequence(self.scenario.seed, spawn_key=(ODOMETRY_STREAM,))
+        spec = self.scenario.noise.odometry.spec()
+        self.odometry = {}
+        for (name, handle), seed in zip(
+            self.robots.items(), seeds.spawn(len(self.robots)), strict=True
+        ):
+            self.odometry[name] = WheelOdometry(
+                handle.platform.wheel_radius,
+                handle.platform.effective_track,
+                spec,
+                np.random.default_rng(seed),
+                pose=handle.pose(self.data),
+            )
+        self._wheels = {n: h.wheel_angles(self.data) for n, h in self.robots.items()}
+        self._controllers: dict[str, DriveController] = {}
+        self._pose_source: dict[str, str] = {}
+        self._touching: set[tuple[str, int]] = set()
+        self.collisions: list[Collision] = []
+        for mid, (rgba, emission) in self._led_off.items():
+            self.model.mat_rgba[mid] = rgba
+            self.model.mat_emission[mid] = emission
+
+    @property
+    def time(self) -> float:
+        """Simulation time, s."""
+        return float(self.data.time)
+
+    def _id(self, kind: mujoco.mjtObj, name: str) -> int:
+        i = mujoco.mj_name2id(self.model, kind, name)
+        if i < 0:
+            raise KeyError(f"the model has no {kind.name.removeprefix('mjOBJ_').lower()} {name!r}")
+        return i
+
+    # -- stepping ----------------------------------------------------------------------------
+    def step(self, ticks: int = 1) -> list[Collision]:
+        """Advance ``ticks`` control periods: controllers, physics, odometry, collisions.
+
+        Returns:
+            The collisions that began during these ticks.
+        """
+        new: list[Collision] = []
+        for _ in range(ticks):
+            self._control()
+            mujoco.mj_step(self.model, self.data, nstep=self.substeps)
+            self._update_odometry()
+            new += self._detect_collisions()
+        return new
+
+    def run(self, seconds: float) -> list[Collision]:
+        """Advance about ``seconds`` of simulated time (whole control periods)."""
+        return self.step(max(1, round(seconds / self.control_period)))
+
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo warnings raised so far, by name (empty when there were none)."""
+        return {
+            mujoco.mjtWarning(i).name: int(w.number)
+            for i, w in enumerate(self.data.warning)
+            if w.number > 0
+        }
+
+    # -- driving -----------------------------------------------------------------------------
+    def set_body_velocity(self, robot: str, v: float, w: float) -> None:
+        """Command a forward speed (m/s) and a yaw rate (rad/s), turned into wheel speeds
+        with the robot's effective track and clipped to the wheels' limits."""
+        h = self.robots[robot]
+        half = 0.5 * h.platform.effective_track
+        self.set_wheel_speeds(
+            robot,
+            (v - w * half) / h.platform.wheel_radius,
+            (v + w * half) / h.platform.wheel_radius,
+        )
+
+    def set_wheel_speeds(self, robot: str, left: float, right: float) -> None:
+        """Command the wheel speeds of each side, rad/s."""
+        h = self.robots[robot]
+        for a in h.left_act:
+            self.data.ctrl[a] = left
+        for a in h.right_act:
+            self.data.ctrl[a] = right
+
+    def drive(
+        self,
+        robot: str,
+        goal_xy: ArrayLike,
+        goal_yaw: float | None = None,
+        pose_source: str = "truth",
+        tolerance: DriveTolerance | None = None,
+    ) -> DriveController:
+        """Start driving ``robot`` to a goal; :meth:`step` then runs its controller.
+
+        Args:
+            robot: the robot's name.
+            goal_xy: (x, y) goal of the body origin, m.
+            goal_yaw: goal heading, rad (None: keep the arrival heading).
+            pose_source: ``truth`` (the simulator's pose, standing in for an external
+                positioning system such as CPS) or ``odometry`` (dead reckoning).
+            tolerance: when the goal counts as reached.
+        """
+        if pose_source not in ("truth", "odometry"):
+            raise ValueError(f"pose_source must be 'truth' or 'odometry', got {pose_source!r}")
+        g = np.asarray(goal_xy, dtype=float).reshape(2)
+        ctl = DriveController(self.robots[robot].platform, (g[0], g[1]), goal_yaw, tolerance)
+        self._controllers[robot] = ctl
+        self._pose_source[robot] = pose_source
+        return ctl
+
+    def stop(self, robot: str) -> None:
+        """Cancel the robot's goal and command zero wheel speed."""
+        self._controllers.pop(robot, None)
+        self.set_wheel_speeds(robot, 0.0, 0.0)
+
+    def moving(self) -> list[str]:
+        """Names of the robots that have a goal not yet reached."""
+        return [n for n, c in self._controllers.items() if not c.done]
+
+    def drive_to(
+        self,
+        robot: str,
+        goal_xy: ArrayLike,
+        goal_yaw: float | None = None,
+        timeout: float | None = None,
+        pose_source: str = "truth",
+        tolerance: DriveTolerance | None = None,
+    ) -> DriveResult:
+        """Drive ``robot`` to a goal and wait until it stops, collides or times out.
+
+        The other robots keep their current commands. On a collision the robot is stopped.
+
+        Args:
+            timeout: simulated seconds allowed (default: three times the straight-line
+                travel time at top speed, plus 10 s).
+        """
+        g = np.asarray(goal_xy, dtype=float).reshape(2)
+        h = self.robots[robot]
+        if timeout is None:
+            dist = float(np.linalg.norm(g - h.pose(self.data)[:2]))
+            timeout = 3.0 * dist / h.platform.max_speed + 10.0
+        ctl = self.drive(robot, g, goal_yaw, pose_source, tolerance)
+        t0 = self.time
+        mine: list[Collision] = []
+        status = "timeout"
+        while self.time - t0 < timeout:
+            mine += [c for c in self.step() if c.robot == robot]
+            if mine:
+                self.stop(robot)
+                status = "collision"
+                break
+            if ctl.done:
+                status = "reached"
+                break
+        self._controllers.pop(robot, None)
+        self.set_wheel_speeds(robot, 0.0, 0.0)
+        pose = h.pose(self.data)
+        return DriveResult(
+            robot=robot,
+            status=status,
+            pose=pose,
+            position_error=float(np.linalg.norm(pose[:2] - g)),
+            duration=self.time - t0,
+            collisions=tuple(mine),
+        )
+
+    def _control(self) -> None:
+        for name, ctl in self._controllers.items():
+            if ctl.done:
+                self.set_wheel_speeds(name, 0.0, 0.0)
+                continue
+            if self._pose_source[name] == "truth":
+                pose = self.robots[name].pose(self.data)
+            else:
+                pose = self.odometry[name].pose
+            v, w = ctl.update((pose[0], pose[1], pose[2]), self.control_period)
+            self.set_body_velocity(name, v, w)
+
+    def _update_odometry(self) -> None:
+        for name, h in self.robots.items():
+            left, right = h.wheel_angles(self.data)
+            l0, r0 = self._wheels[name]
+            self.odometry[name].update(left - l0, right - r0)
+            self._wheels[name] = (left, right)
+
+    def _detect_collisions(self) -> list[Collision]:
+        n = self.data.ncon
+        touching: set[tuple[str, int]] = set()
+        new: list[Collision] = []
+        if n:
+            g1 = self.data.contact.geom1[:n]
+            g2 = self.data.contact.geom2[:n]
+            for k in np.flatnonzero(self._is_chassis[g1] | self._is_chassis[g2]):
+                a, b = int(g1[k]), int(g2[k])
+                for mine, other in ((a, b), (b, a)):
+                    if not self._is_chassis[mine]:
+                        continue
+                    key = (self._chassis_robot[mine], other)
+                    if key in touching:
+                        continue
+                    touching.add(key)
+                    if key not in self._touching:
+                        name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, other)
+                        new.append(
+                            Collision(
+                                self.time,
+                                key[0],
+                                name or f"geom{other}",
+                                self.data.contact.pos[k].copy(),
+                            )
+                        )
+        self._touching = touching
+        self.collisions += new
+        return new
+
+    # -- reading the state -------------------------------------------------------------------
+    def robot_pose(self, robot: str) -> NDArray[np.float64]:
+        """(3,) true planar pose (x, y, yaw) of the robot's body origin, m and rad."""
+        return self.robots[robot].pose(self.data)
+
+    def body_pose(self, robot: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True pose of the robot's base body: (3,) position (m) and (3, 3) body-to-world."""
+        b = self.robots[robot].body
+        return self.data.xpos[b].copy(), self.data.xmat[b].reshape(3, 3).copy()
+
+    def site_pose(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True pose of a site by full name (e.g. ``parent/instrument``): (3,) position, m,
+        and (3, 3) site-to-world rotation."""
+        s = self._id(mujoco.mjtObj.mjOBJ_SITE, name)
+        return self.data.site_xpos[s].copy(), self.data.site_xmat[s].reshape(3, 3).copy()
+
+    def instrument_pose(self, robot: str = "parent") -> tuple[NDArray, NDArray]:
+        """True pose of the total station's origin (site ``ROBOT/instrument``)."""
+        return self.site_pose(f"{robot}/instrument")
+
+    def tilt(self, robot: str = "parent") -> NDArray[np.float64]:
+        """(2,) true tilt of the robot's body: rotation about its x and y axes, rad
+        (what a perfect two-axis inclination sensor on it reads)."""
+        _, r = self.body_pose(robot)
+        up = r.T @ np.array([0.0, 0.0, 1.0])  # world z in body axes
+        return np.array([np.arctan2(up[1], up[2]), -np.arctan2(up[0], up[2])])
+
+    def marker_points(self, child: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True world positions of a child's corner cubes (3, 3) and LEDs (4, 3), m."""
+        cubes = np.array([self.site_pose(f"{child}/cube{k}")[0] for k in range(N_CUBES)])
+        leds = np.array([self.site_pose(f"{child}/led{k}")[0] for k in range(N_LEDS)])
+        return cubes, leds
+
+    # -- LEDs, cameras, sight ----------------------------------------------------------------
+    def set_leds(self, child: str, on: bool | Sequence[bool]) -> None:
+        """Switch a child's LEDs: one flag for all four, or a flag per LED (index 0 lowest
+        in the default geometry). Changes the LED materials' colour and emission."""
+        flags = [bool(on)] * N_LEDS if isinstance(on, bool | np.bool_) else [bool(f) for f in on]
+        if len(flags) != N_LEDS:
+            raise ValueError(f"give one flag or {N_LEDS} flags for the LEDs, got {len(flags)}")
+        for k, flag in enumerate(flags):
+            mid = self._id(mujoco.mjtObj.mjOBJ_MATERIAL, f"{child}/led{k}")
+            rgba, emission = self._led_off[mid]
+            self.model.mat_rgba[mid] = LED_ON_RGBA if flag else rgba
+            self.model.mat_emission[mid] = LED_ON_EMISSION if flag else emission
+
+    def leds_on(self, child: str) -> list[bool]:
+        """Which of a child's LEDs are lit."""
+        out = []
+        for k in range(N_LEDS):
+            mid = self._id(mujoco.mjtObj.mjOBJ_MATERIAL, f"{child}/led{k}")
+            out.append(bool(self.model.mat_emission[mid] > 0.5 * LED_ON_EMISSION))
+        return out
+
+    @property
+    def camera_names(self) -> list[str]:
+        """Names of the fixed cameras, in scenario order."""
+        return [c.name for c in self.scenario.cameras]
+
+    def camera(self, name: str) -> TsaiCamera:
+        """A fixed camera read back from the model (pose in W, OpenCV pixels), with the
+        scenario's kappa1 (which MuJoCo does not render)."""
+        return tsai_from_model(self.model, self.data, name, self.scenario.camera(name).kappa1)
+
+    def ray(
+        self, origin: ArrayLike, direction: ArrayLike, exclude_robot: str | None = None
+    ) -> tuple[float, str | None]:
+        """Cast a ray against the space and the robots' visible geoms.
+
+        Args:
+            origin: (3,) start, m. direction: (3,) direction (any length).
+            exclude_robot: a robot whose root body is ignored (e.g. the one looking).
+
+        Returns:
+            (distance along the unit direction in m, name of the geom hit), or
+            (inf, None) if nothing is hit.
+        """
+        o = np.asarray(origin, dtype=float).reshape(3)
+        d = np.asarray(direction, dtype=float).reshape(3)
+        d = d / np.linalg.norm(d)
+        gid = np.array([-1], dtype=np.int32)
+        body = self.robots[exclude_robot].body if exclude_robot else -1
+        dist = mujoco.mj_ray(self.model, self.data, o, d, SIGHT_GROUPS, 1, body, gid)
+        if dist < 0:
+            return float("inf"), None
+        return float(dist), mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, int(gid[0]))
+
+    def line_of_sight(
+        self,
+        p_from: ArrayLike,
+        p_to: ArrayLike,
+        exclude_robot: str | None = None,
+        tolerance: float = 0.05,
+    ) -> bool:
+        """Whether nothing blocks the segment from ``p_from`` to ``p_to`` (m) except within
+        ``tolerance`` (m) of ``p_to`` (the target's own housing, e.g. a prism or an LED)."""
+        a = np.asarray(p_from, dtype=float).reshape(3)
+        b = np.asarray(p_to, dtype=float).reshape(3)
+        dist, _ = self.ray(a, b - a, exclude_robot)
+        return bool(dist >= np.linalg.norm(b - a) - tolerance)
+
+    def export(self, path: str | Path) -> Path:
+        """Write the compiled scene as one MJCF file that loads on its own, and return it.
+
+        The scene uses only primitive shapes and built-in textures: no asset files."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(self.spec.to_xml(), encoding="utf-8")
+        return path
+
+
+def build_world(scenario: Scenario, control_period: float = 0.02) -> World:
+    """Compose and compile ``scenario`` into a :class:`World` at its start state."""
+    return World(scenario, control_period)
+
+
+__all__ = ["SPACE_GROUP", "Collision", "DriveResult", "World", "build_spec", "build_world"]
