@@ -20,8 +20,8 @@ from twin.scenario.geometry import (
     polyline_points,
     segment_blocked,
 )
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
 from twin.scenario.schema import Scenario
-from twin.sim.platforms import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
 
 # Clearance kept between a robot's centre and walls or obstacles, m: its footprint's
 # enclosing radius.

@@ -23,8 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator
 from calib.camera import TsaiCamera
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
-from twin.sim.odometry import OdometrySpec
-from twin.sim.platforms import INSTRUMENT_HEIGHT, PLATFORMS, Platform
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PLATFORMS, OdometrySpec, Platform
 
 Vec2 = tuple[float, float]
 Vec3 = tuple[float, float, float]

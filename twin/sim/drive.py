@@ -1,7 +1,7 @@
 """Go-to-pose controller for the Pioneers: turn, drive, turn, stop, within their limits.
 
 The controller turns a pose estimate into body velocity commands (v forward, w yaw rate),
-with the speed and acceleration limits of :class:`twin.sim.platforms.Platform`:
+with the speed and acceleration limits of :class:`twin.scenario.robots.Platform`:
 
 1. turn in place towards the goal while the bearing error exceeds ``turn_first``;
 2. drive forward, steering onto the bearing, at a speed that can still stop at the goal
@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from twin.sim.platforms import Platform
+from twin.scenario.robots import Platform
 
 
 class DrivePhase(Enum):

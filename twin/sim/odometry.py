@@ -12,29 +12,10 @@ Pure numpy; the simulator feeds it wheel angle increments.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 
-
-@dataclass(frozen=True)
-class OdometrySpec:
-    """Error model of wheel odometry.
-
-    Attributes:
-        wheel_scale_sigma: standard deviation of the relative error of each side's
-            believed wheel radius, drawn once per robot (dimensionless). Default 0.1 %.
-        track_sigma: standard deviation of the relative error of the believed effective
-            track width, drawn once per robot (dimensionless). Default 0.5 %.
-        distance_noise: random error of the travelled distance, m per sqrt(m) travelled.
-        heading_noise: random error of the heading, rad per sqrt(m) travelled.
-    """
-
-    wheel_scale_sigma: float = 0.001
-    track_sigma: float = 0.005
-    distance_noise: float = 0.005
-    heading_noise: float = 0.003
+from twin.scenario.robots import OdometrySpec
 
 
 class WheelOdometry:

@@ -15,8 +15,8 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from twin.instruments.marker import MarkerAssembly
+from twin.scenario.robots import Platform
 from twin.scenario.schema import RobotConfig
-from twin.sim.platforms import Platform
 
 N_CUBES = 3
 N_LEDS = 4

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from twin.scenario.robots import PIONEER3DX
 from twin.sim.drive import DriveController, DrivePhase
-from twin.sim.platforms import PIONEER3DX
 from twin.sim.scene import build_world
 
 from .helpers import scenario

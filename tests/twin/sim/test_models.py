@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from twin.instruments.marker import MarkerAssembly
-from twin.sim.platforms import INSTRUMENT_HEIGHT, MODELS_DIR, PIONEER3AT, PIONEER3DX
+from twin.scenario.robots import INSTRUMENT_HEIGHT, MODELS_DIR, PIONEER3AT, PIONEER3DX
 
 DEVICES = ["pioneer3at", "pioneer3dx"]
 

@@ -1,8 +1,8 @@
-"""Dimensions and motion limits of the Pioneer robots, in SI units.
+"""The robots as scenarios see them: Pioneer dimensions, motion limits, odometry errors.
 
 These numbers describe the MJCF models in ``models/pioneer3at`` and ``models/pioneer3dx``
-(a test checks that they agree). They are kept free of MuJoCo so that scenario validation
-and the geometric fidelity can use them.
+(a test checks that they agree). They are kept free of MuJoCo (and of :mod:`twin.sim`) so
+that scenario validation, the geometric fidelity and the campaign code can use them.
 
 Motion limits: the P3-AT's rated top speed is 0.7 m/s and the P3-DX's 1.2 m/s (MobileRobots
 data sheets). The accelerations and turn rates are deliberately conservative (a total
@@ -99,3 +99,22 @@ PLATFORMS: dict[str, Platform] = {p.model: p for p in (PIONEER3AT, PIONEER3DX)}
 # Height of the total station's origin (vertical axis meets trunnion axis) above the floor
 # under the parent robot, m: the ``instrument`` site of models/pioneer3at.
 INSTRUMENT_HEIGHT = 0.40
+
+
+@dataclass(frozen=True)
+class OdometrySpec:
+    """Error model of wheel odometry.
+
+    Attributes:
+        wheel_scale_sigma: standard deviation of the relative error of each side's
+            believed wheel radius, drawn once per robot (dimensionless). Default 0.1 %.
+        track_sigma: standard deviation of the relative error of the believed effective
+            track width, drawn once per robot (dimensionless). Default 0.5 %.
+        distance_noise: random error of the travelled distance, m per sqrt(m) travelled.
+        heading_noise: random error of the heading, rad per sqrt(m) travelled.
+    """
+
+    wheel_scale_sigma: float = 0.001
+    track_sigma: float = 0.005
+    distance_noise: float = 0.005
+    heading_noise: float = 0.003
