@@ -96,8 +96,8 @@ class Lighting(Frozen):
 
     Attributes:
         shadows: whether the lights cast shadows (3-5x slower rendering).
-        ambient: ambient light level of the overhead lights, 0..1.
-        diffuse: diffuse light level of the overhead lights, 0..1.
+        ambient: ambient light level of the whole scene (MuJoCo's headlight ambient), 0..1.
+        diffuse: diffuse level of each overhead point light, 0..1.
         spacing: distance between overhead lights, m.
     """
 

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+import tomllib
 
 import numpy as np
 import pydantic
 import pytest
+import yaml
 
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
@@ -89,3 +91,12 @@ def test_paper_hall_matches_the_paper():
     dist = np.linalg.norm(corners - cam1.position[:2], axis=1)
     assert 3.0 < dist.min() < 4.5
     assert 7.5 < dist.max() < 10.0
+
+
+def test_yaml_scenarios_load_the_same(tmp_path):
+    raw = tomllib.loads((SCENARIOS / "smoke.toml").read_text(encoding="utf-8"))
+    path = tmp_path / "smoke.yaml"
+    path.write_text(yaml.safe_dump(raw), encoding="utf-8")
+    from_yaml = load_scenario(path)
+    from_toml = load_scenario(SCENARIOS / "smoke.toml")
+    assert from_yaml.model_dump(exclude={"source"}) == from_toml.model_dump(exclude={"source"})

@@ -113,3 +113,17 @@ def test_controller_phases():
         ctl.update((1.0, 1.0, 0.0), 0.02)
     assert ctl.done
     assert ctl.update((1.0, 1.0, 0.0), 0.02) == (0.0, 0.0)
+
+
+def test_dead_reckoning_alone_misses_the_goal():
+    world = build_world(scenario("smoke"))
+    goals = [(6.0, 1.5), (6.0, 0.6), (2.5, 0.6), (2.5, 1.5)]
+    for goal in goals:
+        result = world.drive_to("child1", goal, pose_source="odometry")
+        assert result.status == "reached"
+    believed = world.odometry["child1"].pose
+    true = world.robot_pose("child1")
+    # The robot believes it is at the goal; it is not: odometry drift.
+    assert np.linalg.norm(believed[:2] - goals[-1]) < 0.02
+    assert np.linalg.norm(true[:2] - goals[-1]) > 0.02
+    assert world.odometry["child1"].distance == pytest.approx(9.8, abs=0.3)
