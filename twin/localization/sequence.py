@@ -29,8 +29,9 @@ from numpy.typing import NDArray
 from twin.localization.checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
 from twin.localization.closed_form import solve_closed_form
 from twin.localization.observation import ChildObservation
-from twin.localization.planar import rot_z, rot_z_derivative
+from twin.localization.planar import rot_z
 from twin.localization.pose import CpsSolution, ParentPose
+from twin.localization.propagation import level2world_jacobian
 from twin.localization.wls import solve_wls
 
 SOLVERS = ("wls", "closed_form")
@@ -168,7 +169,8 @@ class CpsSequence:
         """
         obs = self._check_observations(observations, minimum=1)
         yaw, t = self._x[0], self._x[1:4]
-        rot, drot = rot_z(yaw), rot_z_derivative(yaw)
+        rot = rot_z(yaw)
+        jac_parent = level2world_jacobian(yaw, [o.point_level for o in obs])
         n = self._x.size
         a = np.eye(n)
         b = np.zeros((n, 3 * len(obs)))
@@ -179,8 +181,7 @@ class CpsSequence:
             s = slice(4 + 3 * k, 7 + 3 * k)
             x_new[s] = rot @ o.point_level + t
             a[s, :] = 0.0
-            a[s, 0] = drot @ o.point_level
-            a[s, 1:4] = np.eye(3)
+            a[s, :4] = jac_parent[j]
             b[s, 3 * j : 3 * j + 3] = rot
             noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
             self._known[k] = True
