@@ -11,6 +11,8 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+SPREAD_WARNING = 100.0  # condition number of the point cloud above which we warn
+
 
 class DegenerateGeometryWarning(UserWarning):
     """The point geometry is not singular but poorly conditioned; results may be inaccurate."""
@@ -104,7 +106,8 @@ def check_spread(points_3d: NDArray[np.float64], *, need_3d: bool, what: str) ->
 
     Returns the condition number (largest / smallest singular value of the centred points
     in the dimensions required). Raises ValueError for a singular geometry and warns with
-    :class:`DegenerateGeometryWarning` when the condition number exceeds 1e4.
+    :class:`DegenerateGeometryWarning` when the condition number exceeds 100 (the thinnest
+    extent of the points is under 1% of the widest).
     """
     centred = points_3d - points_3d.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
@@ -123,7 +126,7 @@ def check_spread(points_3d: NDArray[np.float64], *, need_3d: bool, what: str) ->
         )
     k = 2 if need_3d else 1
     cond = float(s[0] / s[k])
-    if cond > 1e4:
+    if cond > SPREAD_WARNING:
         warnings.warn(
             f"{what}: the points are nearly {'coplanar' if need_3d else 'collinear'} "
             f"(condition number {cond:.3g}); the result may be poorly determined",

@@ -150,5 +150,15 @@ def calibrate_opencv(
     cov = propagate_covariance(cov_q, reported, q, steps, mask)
     cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
     return make_result(
-        "opencv", cam, names, reported(q), cov, sigma2, dof, p3, uv, fit_notes(dof, cond), None
+        "opencv",
+        cam,
+        names,
+        reported(q),
+        cov,
+        sigma2,
+        dof,
+        p3,
+        uv,
+        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
+        None,
     )

@@ -68,9 +68,18 @@ FEW_DOF = 10  # below this many degrees of freedom the standard deviations are s
 ILL_CONDITIONED = 1e8  # condition number of the (column-scaled) normal equations
 
 
-def fit_notes(dof: int, condition: float) -> list[str]:
-    """Messages about a fit that a user should read: few degrees of freedom, bad geometry."""
+LARGE_RESIDUAL_PX = 5.0  # a residual sigma above this suggests wrong correspondences
+
+
+def fit_notes(dof: int, condition: float, sigma_px: float = 0.0) -> list[str]:
+    """Messages about a fit that a user should read: few degrees of freedom, bad geometry,
+    residuals too large for correct correspondences."""
     notes = []
+    if sigma_px > LARGE_RESIDUAL_PX:
+        notes.append(
+            f"the residuals are large (sigma {sigma_px:.3g} px): check the correspondences, "
+            "the units and the image size"
+        )
     if dof < FEW_DOF:
         notes.append(
             f"the fit has only {dof} degrees of freedom (2 x points - parameters); the "

@@ -27,9 +27,42 @@ def matrix_to_euler(rotation: ArrayLike) -> NDArray[np.float64]:
     return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_euler(EULER_SEQ)
 
 
+def skew(v: ArrayLike) -> NDArray[np.float64]:
+    """(3,) vector -> (3, 3) cross-product matrix [v]x, so that skew(a) @ b = a x b."""
+    x, y, z = np.asarray(v, dtype=float)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
 def rotvec_to_matrix(rotvec: ArrayLike) -> NDArray[np.float64]:
-    """(3,) rotation vector, rad -> (3, 3) rotation matrix."""
-    return Rotation.from_rotvec(np.asarray(rotvec, dtype=float)).as_matrix()
+    """(3,) rotation vector, rad -> (3, 3) rotation matrix (Rodrigues' formula)."""
+    w = np.asarray(rotvec, dtype=float)
+    theta2 = float(w @ w)
+    k = skew(w)
+    if theta2 < 1e-12:
+        # Taylor expansion: sin(t)/t ~ 1 - t^2/6, (1 - cos t)/t^2 ~ 1/2 - t^2/24.
+        a, b = 1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0
+    else:
+        theta = np.sqrt(theta2)
+        a, b = np.sin(theta) / theta, (1.0 - np.cos(theta)) / theta2
+    return np.eye(3) + a * k + b * (k @ k)
+
+
+def right_jacobian(rotvec: ArrayLike) -> NDArray[np.float64]:
+    """(3, 3) right Jacobian J_r of SO(3) at a rotation vector.
+
+    exp(w + d) ~ exp(w) exp(J_r(w) d) for a small d, so the derivative of R(w) @ v with
+    respect to w is -R(w) @ skew(v) @ J_r(w).
+    """
+    w = np.asarray(rotvec, dtype=float)
+    theta2 = float(w @ w)
+    k = skew(w)
+    if theta2 < 1e-12:
+        a, b = 0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0
+    else:
+        theta = np.sqrt(theta2)
+        a = (1.0 - np.cos(theta)) / theta2
+        b = (theta - np.sin(theta)) / (theta2 * theta)
+    return np.eye(3) - a * k + b * (k @ k)
 
 
 def matrix_to_rotvec(rotation: ArrayLike) -> NDArray[np.float64]:

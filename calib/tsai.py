@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
-from calib.camera import TsaiCamera, project_tsai
+from calib.camera import TsaiCamera, project_tsai, project_tsai_jacobian
 from calib.checks import (
     check_correspondences,
     check_image_size,
@@ -33,7 +33,7 @@ from calib.covariance import (
     unit_covariance,
 )
 from calib.result import CalibrationResult, fit_notes, make_result
-from calib.rotation import matrix_to_euler, matrix_to_rotvec, rotvec_to_matrix
+from calib.rotation import matrix_to_euler, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
 
 TSAI_PARAMETERS = ("f_px", "cx", "cy", "sx", "kappa1_px", "rx", "ry", "rz", "x", "y", "z")
@@ -79,6 +79,23 @@ def _steps(q: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([1e-4 * abs(q[0]), 1e-3, 1e-3, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5])
 
 
+def _pixel_jacobian(
+    p3: NDArray[np.float64], image_size: tuple[int, int]
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """Internal parameters -> (2N, 11) analytic Jacobian of the projected pixels."""
+    kscale = _kappa_scale(image_size)
+
+    def jac_of(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        r = rotvec_to_matrix(q[5:8])
+        _, j = project_tsai_jacobian(
+            p3, q[0], q[3], q[4] / kscale, r, q[8:11], right_jacobian(q[5:8])
+        )
+        j[:, :, 4] /= kscale
+        return np.nan_to_num(j.reshape(-1, N_TSAI), nan=0.0)
+
+    return jac_of
+
+
 def _pixel_function(
     p3: NDArray[np.float64], image_size: tuple[int, int]
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
@@ -120,7 +137,7 @@ def predicted_covariance(
     """
     p3 = check_points_3d(points_3d)
     q = _pack(camera)
-    j = central_jacobian(_pixel_function(p3, camera.image_size), q, _steps(q))
+    j = _pixel_jacobian(p3, camera.image_size)(q)
     cov_q = sigma_px**2 * unit_covariance(j)
     return _reported_covariance(cov_q, q, _kappa_scale(camera.image_size))
 
@@ -159,7 +176,7 @@ def calibrate_tsai(
         f"optimisation of {N_TSAI} parameters needs at least {FULL_MIN_POINTS})",
     )
     check_pixels_in_image(uv, size)
-    check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
+    spread = check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
 
     init = tsai_initial_estimate(p3, uv, size, centre, check=False)
     cam0 = TsaiCamera(
@@ -169,7 +186,9 @@ def calibrate_tsai(
     if behind:
         raise ValueError(
             f"{int(behind)} of {len(p3)} points lie behind the camera found by the linear "
-            "stage; check that the 3D points and pixels correspond"
+            "stage: either the points and pixels do not correspond, or the points are too "
+            f"close to coplanar for their noise (point-cloud condition number {spread:.3g}, "
+            f"linear-stage condition number {init.condition:.3g})"
         )
     kscale = _kappa_scale(size)
     pixels_of = _pixel_function(p3, size)
@@ -178,8 +197,7 @@ def calibrate_tsai(
     def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return pixels_of(q) - uv_flat
 
-    def jac(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        return central_jacobian(residual, q, _steps(q))
+    jac = _pixel_jacobian(p3, size)
 
     q0 = _pack(cam0)
     sol = least_squares(
@@ -196,7 +214,17 @@ def calibrate_tsai(
     values = _reported(q, kscale)
     cov = _reported_covariance(cov_q, q, kscale)
     return make_result(
-        "tsai", cam, TSAI_PARAMETERS, values, cov, sigma2, dof, p3, uv, fit_notes(dof, cond), cam0
+        "tsai",
+        cam,
+        TSAI_PARAMETERS,
+        values,
+        cov,
+        sigma2,
+        dof,
+        p3,
+        uv,
+        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
+        cam0,
     )
 
 
@@ -270,6 +298,6 @@ def calibrate_exterior(
         dof,
         p3,
         uv,
-        fit_notes(dof, cond),
+        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
         None,
     )

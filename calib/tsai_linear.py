@@ -2,8 +2,9 @@
 
 Stage 1, radial alignment: with the image centre guessed, the direction of each image point
 from the centre is parallel to the direction of its 3D point from the optical axis whatever
-f and kappa1 are. That gives a linear system in 7 unknowns (sx r1/Ty, sx r2/Ty, sx r3/Ty,
-sx Tx/Ty, r4/Ty, r5/Ty, r6/Ty): the rotation, Tx, Ty and sx.
+f and kappa1 are. That gives a linear system in 7 unknowns (Tsai's sx r1/Ty, sx r2/Ty,
+sx r3/Ty, sx Tx/Ty, r4/Ty, r5/Ty, r6/Ty), solved here in its homogeneous form (8 unknowns
+up to scale) so that Ty near zero does no harm: the rotation, Tx, Ty and sx.
 
 Stage 2: with the rotation known, f and Tz follow from a linear least-squares fit (no
 distortion), then f, Tz and kappa1 from a small nonlinear fit in the undistorted domain.
@@ -84,30 +85,33 @@ def radial_alignment(
         check_spread(p3, need_3d=True, what="Tsai's non-coplanar calibration")
     xd = uv[:, 0] - cx  # = sx * x_d
     yd = uv[:, 1] - cy
-    a = np.column_stack([yd[:, None] * p3, yd, -xd[:, None] * p3])
-    # Column scaling keeps the condition number meaningful when coordinates are far from 1.
+    # Homogeneous form: yd (sx r1.X + sx Tx) - xd (r2.X + Ty) = 0 in the 8 unknowns
+    # v = (sx r1, sx Tx, r2, Ty), solved as the null vector of the system by SVD. Tsai's
+    # original divides by Ty, which fails when the world origin lies near the camera's
+    # y_c = 0 plane; this form has no such singularity.
+    a = np.column_stack([yd[:, None] * p3, yd, -xd[:, None] * p3, -xd])
     scale = np.linalg.norm(a, axis=0)
     scale[scale == 0] = 1.0
-    sol, *_ = np.linalg.lstsq(a / scale, xd, rcond=None)
-    sv = np.linalg.svd(a / scale, compute_uv=False)
-    condition = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+    _, sv, vt = np.linalg.svd(a / scale, full_matrices=True)
+    # Consistent data leave one singular value at ~0; the next one measures how well the
+    # points pin the solution down.
+    condition = float(sv[0] / sv[-2]) if sv[-2] > 0 else float("inf")
     if not np.isfinite(condition) or condition > 1e12:
         raise ValueError(
             "Tsai's radial-alignment system is singular "
             f"(condition number {condition:.3g}); the points do not constrain the camera: "
             "spread them over the image and in depth"
         )
-    lvec = sol / scale
-    ty_abs = 1.0 / np.linalg.norm(lvec[4:7])
-    sx = ty_abs * np.linalg.norm(lvec[0:3])
+    v = vt[-1] / scale
+    v = v / np.linalg.norm(v[4:7])  # r2 is a unit row of the rotation
+    sx = float(np.linalg.norm(v[0:3]))
 
-    # Choose the sign of Ty so that the farthest image point and its 3D point lie on the
-    # same side of the optical axis.
+    # v is known up to sign: choose it so that the farthest image point and its 3D point lie
+    # on the same side of the optical axis.
     far = int(np.argmax(xd**2 + yd**2))
-    for ty in (ty_abs, -ty_abs):
-        r1 = lvec[0:3] * ty / sx
-        tx = lvec[3] * ty / sx
-        r2 = lvec[4:7] * ty
+    for sign in (1.0, -1.0):
+        r1, tx = sign * v[0:3] / sx, sign * v[3] / sx
+        r2, ty = sign * v[4:7], sign * v[7]
         xc = r1 @ p3[far] + tx
         yc = r2 @ p3[far] + ty
         if np.sign(xc) == np.sign(xd[far]) and np.sign(yc) == np.sign(yd[far]):
@@ -147,9 +151,13 @@ def tsai_initial_estimate(
     Returns:
         An estimate of all 11 parameters, good enough to start the full optimisation.
     """
-    p3, uv = check_correspondences(points_3d, pixels)
+    p3_world, uv = check_correspondences(points_3d, pixels)
     w, h = image_size
     cx, cy = centre if centre is not None else ((w - 1) / 2.0, (h - 1) / 2.0)
+    # Work about the centroid of the points: a camera far from the world origin otherwise
+    # makes the linear systems ill-conditioned (coordinates of 40 m spread over 5 m).
+    centroid = p3_world.mean(axis=0)
+    p3 = p3_world - centroid
     ra = radial_alignment(p3, uv, cx, cy, check=check)
     yd = uv[:, 1] - cy
     r = ra.world2cam_r
@@ -168,26 +176,32 @@ def tsai_initial_estimate(
             "the points and pixels are inconsistent (wrong correspondences or units?)"
         )
 
-    # Nonlinear fit of f, Tz and kappa1 in the undistorted domain (Tsai's third step).
+    # Nonlinear fit of f, Tz and kappa1 (Tsai's third step). The residual is taken in the
+    # distorted image, x_d - x_u / (1 + kappa1 r_d^2) with r_d from the observations: in
+    # the undistorted domain the cost can shrink towards f -> 0 with kappa1 cancelling the
+    # scale, a degenerate solution that this form does not have.
     xd = (uv[:, 0] - cx) / ra.sx
     r2d = xd**2 + yd**2
+    xc = p3 @ r[0] + tx
     yc = p3 @ r[1] + ty
     wz = p3 @ r[2]
     r_ref2 = (w / 2.0) ** 2 + (h / 2.0) ** 2
 
     def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
         f_, tz_, k_scaled = q
-        return yd * (1.0 + k_scaled / r_ref2 * r2d) - f_ * yc / (wz + tz_)
+        gain = f_ / ((wz + tz_) * (1.0 + k_scaled / r_ref2 * r2d))
+        return np.concatenate([xd - gain * xc, yd - gain * yc])
 
     fit = least_squares(residual, [f, tz, 0.0], method="lm", xtol=1e-12, ftol=1e-12)
     f, tz, k_scaled = fit.x
     if not (f > 0 and np.isfinite(fit.x).all()):
         raise ValueError(
-            f"Tsai's (f, Tz, kappa1) stage found no valid focal length (f = {f:.4g} px): the "
-            f"point geometry does not determine the camera (linear-stage condition number "
-            f"{ra.condition:.3g}); spread the points in depth and over the image"
+            f"Tsai's (f, Tz, kappa1) stage found no valid focal length (f = {f:.4g} px): "
+            "either the points and pixels are inconsistent (wrong pairing, units or image "
+            "size?) or the geometry does not determine the camera (linear-stage condition "
+            f"number {ra.condition:.3g})"
         )
-    t = np.array([tx, ty, tz])
+    t = np.array([tx, ty, tz]) - r @ centroid
     return TsaiInitialEstimate(
         float(f), float(cx), float(cy), ra.sx, float(k_scaled / r_ref2), r, t, ra.condition
     )

@@ -124,3 +124,36 @@ def test_opencv_model_options_free_more_coefficients(cam1, cam1_points) -> None:
         res = calibrate_opencv(cam1_points, uv, cam1.image_size, tangential=True, k3=True)
     assert res.parameter_names[4:9] == ("k1", "k2", "p1", "p2", "k3")
     assert res.metrics.pixel.max < 0.01
+
+
+@pytest.mark.parametrize("index", [1, 2, 3])
+def test_robust_over_many_noisy_data_sets(index: int) -> None:
+    # 1 px noise (three times the paper's detection noise) on fresh point sets: the
+    # closed-form start must lead the optimisation to the truth every time.
+    cam = paper_camera(index)
+    rng = np.random.default_rng(100 + index)
+    for _ in range(6):
+        pts = led_points(cam, 70, rng)
+        uv_true = cam.project(pts)
+        for _ in range(10):
+            res = calibrate_tsai(pts, uv_true + rng.normal(0, 1.0, uv_true.shape), cam.image_size)
+            assert np.linalg.norm(res.camera.position - cam.position) < 6 * np.linalg.norm(
+                res.std[8:]
+            )
+
+
+def test_world_origin_far_away_or_in_the_cameras_y_plane() -> None:
+    cam = paper_camera(1)
+    pts = led_points(cam, 70, np.random.default_rng(8))
+    # (a) the whole scene 5 km from the world origin;
+    offset = np.array([5000.0, -3000.0, 20.0])
+    far = cam.with_(world2cam_t=cam.world2cam_t - cam.world2cam_r @ offset)
+    res = calibrate_tsai(pts + offset, far.project(pts + offset), far.image_size)
+    assert_allclose(res.camera.position, far.position, rtol=1e-9)
+    # (b) the world origin on the camera's y_c = 0 plane (Ty = 0), where Tsai's original
+    # linear stage divides by zero.
+    shift = cam.world2cam_r.T @ np.array([0.0, cam.world2cam_t[1], 0.0])
+    flat = cam.with_(world2cam_t=cam.world2cam_t - cam.world2cam_r @ shift)
+    assert abs(flat.world2cam_t[1]) < 1e-12
+    res = calibrate_tsai(pts + shift, flat.project(pts + shift), flat.image_size)
+    assert_allclose(res.camera.position, flat.position, atol=1e-9)
