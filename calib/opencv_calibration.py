@@ -20,9 +20,9 @@ from calib.checks import (
     check_pixels_in_image,
     check_spread,
 )
-from calib.covariance import central_jacobian, least_squares_covariance, propagate_covariance
+from calib.covariance import central_jacobian
 from calib.opencv_camera import DIST_NAMES, OpenCVCamera
-from calib.result import CalibrationResult, fit_notes, make_result
+from calib.result import CalibrationResult, result_from_fit
 from calib.rotation import matrix_to_euler, matrix_to_rotvec, rotvec_to_matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
 
@@ -125,8 +125,6 @@ def calibrate_opencv(
     )
     q = sol.x
     cam = camera_of(q)
-    j = central_jacobian(residual, q, steps)
-    cov_q, sigma2, dof = least_squares_covariance(j, residual(q))
 
     def reported(x: NDArray[np.float64]) -> NDArray[np.float64]:
         euler = matrix_to_euler(rotvec_to_matrix(x[-6:-3]))
@@ -145,20 +143,5 @@ def calibrate_opencv(
         "y",
         "z",
     )
-    mask = np.zeros(len(names), dtype=bool)
-    mask[-6:-3] = True
-    cov = propagate_covariance(cov_q, reported, q, steps, mask)
-    cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
-    return make_result(
-        "opencv",
-        cam,
-        names,
-        reported(q),
-        cov,
-        sigma2,
-        dof,
-        p3,
-        uv,
-        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
-        None,
-    )
+    j = central_jacobian(residual, q, steps)
+    return result_from_fit("opencv", cam, names, q, j, residual(q), reported, steps, p3, uv)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -10,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.checks import DegenerateGeometryWarning
+from calib.covariance import least_squares_covariance, propagate_covariance
 from calib.metrics import Metrics, evaluate
 
 
@@ -93,29 +95,49 @@ def fit_notes(dof: int, condition: float, sigma_px: float = 0.0) -> list[str]:
     return notes
 
 
-def make_result(
+def result_from_fit(
     model: str,
     camera: Any,
     names: tuple[str, ...],
-    values: NDArray[np.float64],
-    covariance: NDArray[np.float64],
-    sigma2: float,
-    dof: int,
+    q: NDArray[np.float64],
+    jac: NDArray[np.float64],
+    residuals: NDArray[np.float64],
+    reported: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    steps: NDArray[np.float64],
     points_3d: NDArray[np.float64],
     pixels: NDArray[np.float64],
-    notes: list[str],
-    initial_camera: Any,
+    initial_camera: Any = None,
 ) -> CalibrationResult:
-    """Assemble a result, evaluate its metrics and emit its notes as warnings."""
+    """Turn a least-squares solution into a result.
+
+    The covariance of the internal parameters q is sigma^2 (J^T J)^-1; it is propagated to
+    the reported parameters ``reported(q)`` (whose rotation angles are named rx, ry, rz),
+    the Table III metrics are evaluated, and the notes are emitted as warnings.
+
+    Args:
+        model: the model's name. camera: the calibrated camera.
+        names: (P,) names of the reported parameters.
+        q: (Q,) solution in the optimiser's parameters. jac: (M, Q) Jacobian there.
+        residuals: (M,) residuals there, px. reported: q -> (P,) reported parameters.
+        steps: (Q,) finite-difference steps for the propagation.
+        points_3d, pixels: the correspondences, (N, 3) m and (N, 2) px.
+        initial_camera: the closed-form start, if any.
+    """
+    cov_q, sigma2, dof = least_squares_covariance(jac, residuals)
+    angle_mask = np.isin(names, ("rx", "ry", "rz"))
+    covariance = propagate_covariance(cov_q, reported, q, steps, angle_mask)
+    condition = float(np.linalg.cond(jac / np.linalg.norm(jac, axis=0)) ** 2)
+    sigma = float(np.sqrt(sigma2)) if dof > 0 else float("nan")
+    notes = fit_notes(dof, condition, sigma if dof > 0 else 0.0)
     for n in notes:
         warnings.warn(n, DegenerateGeometryWarning, stacklevel=3)
     return CalibrationResult(
         model=model,
         camera=camera,
         parameter_names=names,
-        values=values,
+        values=reported(q),
         covariance=covariance,
-        sigma_px=float(np.sqrt(sigma2)) if np.isfinite(sigma2) else float("nan"),
+        sigma_px=sigma,
         dof=dof,
         metrics=evaluate(camera, points_3d, pixels),
         initial_camera=initial_camera,

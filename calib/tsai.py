@@ -28,11 +28,10 @@ from calib.checks import (
 )
 from calib.covariance import (
     central_jacobian,
-    least_squares_covariance,
     propagate_covariance,
     unit_covariance,
 )
-from calib.result import CalibrationResult, fit_notes, make_result
+from calib.result import CalibrationResult, result_from_fit
 from calib.rotation import matrix_to_euler, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
 
@@ -208,22 +207,17 @@ def calibrate_tsai(
     if (cam.to_camera_frame(p3)[:, 2] <= 0).any():
         raise ValueError("the optimisation put points behind the camera; the data are inconsistent")
 
-    j = jac(q)
-    cov_q, sigma2, dof = least_squares_covariance(j, residual(q))
-    cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
-    values = _reported(q, kscale)
-    cov = _reported_covariance(cov_q, q, kscale)
-    return make_result(
+    return result_from_fit(
         "tsai",
         cam,
         TSAI_PARAMETERS,
-        values,
-        cov,
-        sigma2,
-        dof,
+        q,
+        jac(q),
+        residual(q),
+        lambda x: _reported(x, kscale),
+        _steps(q),
         p3,
         uv,
-        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
         cam0,
     )
 
@@ -279,25 +273,10 @@ def calibrate_exterior(
     q = sol.x
     r = rotvec_to_matrix(q[:3])
     cam = intrinsics.with_(world2cam_r=r, world2cam_t=-r @ q[3:])
-    j = jac(q)
-    cov_q, sigma2, dof = least_squares_covariance(j, residual(q))
 
     def reported(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.concatenate([matrix_to_euler(rotvec_to_matrix(x[:3])), x[3:]])
 
-    mask = np.array([True, True, True, False, False, False])
-    cov = propagate_covariance(cov_q, reported, q, steps, mask)
-    cond = float(np.linalg.cond(j / np.linalg.norm(j, axis=0)) ** 2)
-    return make_result(
-        "tsai-exterior",
-        cam,
-        EXTERIOR_PARAMETERS,
-        reported(q),
-        cov,
-        sigma2,
-        dof,
-        p3,
-        uv,
-        fit_notes(dof, cond, float(np.sqrt(sigma2)) if dof > 0 else 0.0),
-        None,
+    return result_from_fit(
+        "tsai-exterior", cam, EXTERIOR_PARAMETERS, q, jac(q), residual(q), reported, steps, p3, uv
     )
