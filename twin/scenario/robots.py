@@ -32,9 +32,14 @@ class Platform:
         max_yaw_rate: turn rate limit, rad/s.
         max_yaw_accel: turn acceleration limit, rad/s^2.
         wheels_left, wheels_right: names of the driven wheel joints (= actuators).
-        effective_track: track width that maps wheel speeds to the yaw rate actually
-            obtained, m (larger than ``track`` for a skid-steered robot, whose wheels slip
-            sideways when it turns; measured on the model, see the README).
+        effective_track: kinematic track width, m: the measured wheel rotation of each
+            side (as distance rolled, ``r dphi``) and the yaw actually turned satisfy
+            ``dyaw = (d_right - d_left) / effective_track``. Odometry uses it. Larger than
+            ``track`` for a skid-steered robot, whose wheels slip sideways when it turns;
+            measured on the model from wheel angles and yaw (see the model's README).
+        command_track: track width used to turn (v, w) commands into wheel-speed commands,
+            m. It also absorbs the wheel servos' speed-tracking error, so that a commanded
+            yaw rate is about the one obtained; it is *not* the odometry's track.
     """
 
     model: str
@@ -50,6 +55,7 @@ class Platform:
     wheels_left: tuple[str, ...]
     wheels_right: tuple[str, ...]
     effective_track: float
+    command_track: float
 
     @property
     def radius(self) -> float:
@@ -75,7 +81,8 @@ PIONEER3AT = Platform(
     max_yaw_accel=1.0,
     wheels_left=("front_left_wheel", "rear_left_wheel"),
     wheels_right=("front_right_wheel", "rear_right_wheel"),
-    effective_track=1.0,
+    effective_track=0.85,
+    command_track=1.0,
 )
 
 PIONEER3DX = Platform(
@@ -92,6 +99,7 @@ PIONEER3DX = Platform(
     wheels_left=("left_wheel",),
     wheels_right=("right_wheel",),
     effective_track=0.33,
+    command_track=0.33,
 )
 
 PLATFORMS: dict[str, Platform] = {p.model: p for p in (PIONEER3AT, PIONEER3DX)}

@@ -209,7 +209,7 @@ class World:
         """Command a forward speed (m/s) and a yaw rate (rad/s), turned into wheel speeds
         with the robot's effective track and clipped to the wheels' limits."""
         h = self.robots[robot]
-        half = 0.5 * h.platform.effective_track
+        half = 0.5 * h.platform.command_track
         self.set_wheel_speeds(
             robot,
             (v - w * half) / h.platform.wheel_radius,
