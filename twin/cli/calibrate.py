@@ -103,7 +103,8 @@ def result_to_dict(
 
 
 def _fmt(v: float) -> str:
-    return f"{v:.6g}" if abs(v) < 1e-3 and v != 0 else f"{v:.4f}"
+    """Four decimals, or four significant digits in e-notation for small numbers."""
+    return f"{v:.4e}" if 0 < abs(v) < 1e-2 else f"{v:.4f}"
 
 
 def print_result(console: Console, d: dict[str, Any], source: str) -> None:
