@@ -3,12 +3,17 @@
 The controller turns a pose estimate into body velocity commands (v forward, w yaw rate),
 with the speed and acceleration limits of :class:`twin.scenario.robots.Platform`:
 
-1. turn in place towards the goal while the bearing error exceeds ``turn_first``;
-2. drive forward, steering onto the bearing, at a speed that can still stop at the goal
-   with the acceleration limit (v <= sqrt(2 a d));
+1. turn in place towards the goal while the bearing error exceeds ``turn_first`` (inside
+   ``slow_radius``, where the robot no longer steers, until it points at the goal well
+   enough to pass within half the position tolerance; there it may face away from a goal
+   behind it and reverse onto it instead);
+2. drive forward (or back, near the goal), steering onto the bearing, at a speed that can
+   still stop at the goal with the acceleration limit (v <= sqrt(2 a d)); a goal left
+   beside the robot sends it back to step 1;
 3. brake at the acceleration limit so as to stop at the goal, and turn in place to the
    goal heading (if one is given);
-4. report done once the heading is within tolerance and the commands have ramped to zero.
+4. report done once stopped within the position tolerance of the goal, heading within
+   tolerance; stopped off the goal, start again at step 1.
 
 Pure Python; :class:`twin.sim.scene.World` feeds it poses and applies its commands.
 """
@@ -76,6 +81,7 @@ class DriveController:
         self.phase = DrivePhase.TURN_TO_GOAL
         self.v = 0.0
         self.w = 0.0
+        self.direction = 1.0  # +1 driving forwards, -1 reversing (near the goal only)
 
     @property
     def done(self) -> bool:
@@ -102,24 +108,29 @@ class DriveController:
             if dist <= self.tol.position:
                 self.phase = DrivePhase.TURN_TO_HEADING
             else:
-                err = wrap(math.atan2(dy, dx) - yaw)
-                if abs(err) <= self.tol.turn_first or dist < self.tol.slow_radius:
+                err = self._aim(dx, dy, dist, yaw)
+                if abs(err) <= self._aim_tolerance(dist):
                     self.phase = DrivePhase.DRIVE
                 else:
                     w_t = self._turn_rate(err)
         if self.phase is DrivePhase.DRIVE:
             # v <= sqrt(2 a d) has braked the robot on the way in; what speed is left at
             # the goal (about sqrt(2 a tol)) ramps down in the next phase.
-            if dist <= self.tol.position or along <= 0.0:
+            ahead = self.direction * along
+            if dist <= self.tol.position:
                 self.phase = DrivePhase.TURN_TO_HEADING
+            elif ahead <= 0.0:
+                # Level with the goal but not on it (it lies beside the robot): aim again.
+                self.phase = DrivePhase.TURN_TO_GOAL
+                w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
             else:
                 err = wrap(math.atan2(dy, dx) - yaw)
                 if dist > self.tol.slow_radius and abs(err) > 2.0 * self.tol.turn_first:
                     self.phase = DrivePhase.TURN_TO_GOAL
-                    w_t = self._turn_rate(err)
+                    w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
                 else:
-                    v_t = min(p.max_speed, math.sqrt(2.0 * p.max_accel * along))
-                    v_t = max(v_t, 0.02)
+                    v_t = min(p.max_speed, math.sqrt(2.0 * p.max_accel * ahead))
+                    v_t = self.direction * max(v_t, 0.02)
                     if dist > self.tol.slow_radius:
                         w_t = max(-p.max_yaw_rate, min(p.max_yaw_rate, 2.0 * err))
         settled = False
@@ -134,8 +145,33 @@ class DriveController:
         self.v = _ramp(self.v, v_t, p.max_accel * dt)
         self.w = _ramp(self.w, w_t, p.max_yaw_accel * dt)
         if settled and self.v == 0.0 and self.w == 0.0:
-            self.phase = DrivePhase.DONE
+            # Done only on the goal: a robot that stopped off it (braking overshoot, a turn
+            # in place that shifted it) closes the gap again.
+            self.phase = DrivePhase.DONE if dist <= self.tol.position else DrivePhase.TURN_TO_GOAL
         return self.v, self.w
+
+    def _aim(self, dx: float, dy: float, dist: float, yaw: float) -> float:
+        """Heading error towards the goal, rad; sets :attr:`direction`.
+
+        Far from the goal the robot drives forwards. Inside ``slow_radius`` it may reverse
+        instead, whichever needs the smaller turn (a goal a few cm behind is backed onto).
+        """
+        err = wrap(math.atan2(dy, dx) - yaw)
+        self.direction = 1.0
+        if dist < self.tol.slow_radius and abs(err) > 0.5 * math.pi:
+            self.direction = -1.0
+            err = wrap(err - math.pi)
+        return err
+
+    def _aim_tolerance(self, dist: float) -> float:
+        """Heading error allowed before driving off towards a goal ``dist`` away, rad.
+
+        Inside ``slow_radius`` the robot no longer steers, so it must point well enough to
+        pass within half the position tolerance of the goal.
+        """
+        if dist >= self.tol.slow_radius:
+            return self.tol.turn_first
+        return min(self.tol.turn_first, math.asin(min(1.0, 0.5 * self.tol.position / dist)))
 
     def _turn_rate(self, err: float) -> float:
         p = self.platform

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from twin.scenario.robots import PIONEER3DX
-from twin.sim.drive import DriveController, DrivePhase
+from twin.sim.drive import DriveController, DrivePhase, DriveTolerance
 from twin.sim.scene import build_world
 
 from .helpers import scenario
@@ -127,3 +127,30 @@ def test_dead_reckoning_alone_misses_the_goal():
     assert np.linalg.norm(believed[:2] - goals[-1]) < 0.02
     assert np.linalg.norm(true[:2] - goals[-1]) > 0.02
     assert world.odometry["child1"].distance == pytest.approx(9.8, abs=0.3)
+
+
+@pytest.mark.parametrize("robot", ["child1", "parent"])
+@pytest.mark.parametrize(
+    "offset",
+    [(-0.08, 0.0), (0.0, 0.09), (-0.30, 0.0), (-0.05, -0.05)],
+    ids=["8cm_behind", "9cm_beside", "30cm_behind", "7cm_behind_right"],
+)
+def test_goals_close_behind_or_beside_are_reached(robot, offset):
+    world = build_world(scenario("smoke"))
+    start = world.robot_pose(robot)
+    c, s = math.cos(start[2]), math.sin(start[2])
+    goal = start[:2] + np.array([c * offset[0] - s * offset[1], s * offset[0] + c * offset[1]])
+    result = world.drive_to(robot, goal)
+    assert result.status == "reached", result
+    assert result.position_error <= DriveTolerance().position, result
+    assert np.linalg.norm(result.pose[:2] - start[:2]) > 0.04  # it moved
+
+
+def test_controller_is_not_done_off_the_goal():
+    # Stopped beside the goal (level with it, so nothing lies ahead): not done, it turns.
+    ctl = DriveController(PIONEER3DX, (0.0, 0.09), goal_yaw=None)
+    for _ in range(5):
+        ctl.update((0.0, 0.0, 0.0), 0.02)
+    assert not ctl.done
+    assert ctl.phase is DrivePhase.TURN_TO_GOAL
+    assert ctl.w > 0.0  # towards the goal, on the left
