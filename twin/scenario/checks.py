@@ -1,5 +1,13 @@
 """Cross-checks between a scenario's sections, each producing a :class:`ScenarioIssue`.
 
+- names are unique (cameras; robots; obstacles and floor patches, which share MuJoCo's
+  geom names) and none is one the scene builder uses itself (``floor``, ``wall_*``);
+- the parent starts at the origin heading along x and the floor lies the instrument's
+  height below the origin (the world frame W is the parent's instrument frame at its start);
+- the robots' start footprints do not overlap;
+- obstacles (the lowest step of a staircase included) are taller than the robots' ground
+  clearance (only the chassis collides with them), and floor patches overlap no obstacle
+  and no other patch;
 - every camera, robot start, floor patch and calibration station lies inside the space and
   outside the obstacles;
 - the route stays inside the walls and clear of the obstacles by the parent's radius;
@@ -18,9 +26,11 @@ from twin.scenario.geometry import (
     inside_obstacle,
     inside_space,
     polyline_points,
+    rectangle_corners,
+    rectangles_gap,
     segment_blocked,
 )
-from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX, PLATFORMS
 from twin.scenario.schema import Scenario
 
 # Clearance kept between a robot's centre and walls or obstacles, m: its footprint's
@@ -28,12 +38,27 @@ from twin.scenario.schema import Scenario
 PARENT_CLEARANCE = PIONEER3AT.radius
 CHILD_CLEARANCE = PIONEER3DX.radius
 
+# Geom names the scene builder (twin.sim.hall) gives the space itself; an obstacle or floor
+# patch may not take them, nor any name starting with ``wall_``.
+RESERVED_NAMES = ("floor", "wall_south", "wall_north", "wall_west", "wall_east")
+RESERVED_PREFIXES = ("wall_",)
+
+# Smallest gap between two robots' start footprints, m.
+START_GAP = 0.05
+
+# Lowest obstacle (or lowest stair step) a robot's chassis still hits, m: anything lower
+# passes under the highest chassis unseen.
+MIN_OBSTACLE_HEIGHT = max(p.ground_clearance for p in PLATFORMS.values())
+
 
 def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
     """Every cross-section problem of ``sc`` (empty when it is consistent)."""
     issues: list[ScenarioIssue] = []
+    issues += _check_names(sc)
+    issues += _check_world_frame(sc)
     issues += _check_cameras(sc)
     issues += _check_robots(sc)
+    issues += _check_obstacles(sc)
     issues += _check_patches(sc)
     issues += _check_route(sc)
     issues += _check_visits(sc)
@@ -62,6 +87,87 @@ def _free_issue(
                 "a point on free floor",
             )
     return None
+
+
+def _check_names(sc: Scenario) -> list[ScenarioIssue]:
+    issues = []
+    robot_keys = ["robots.parent.name"] + [
+        f"robots.children[{i}].name" for i in range(len(sc.robots.children))
+    ]
+    groups = [
+        ("camera", [(f"cameras[{i}].name", c.name) for i, c in enumerate(sc.cameras)]),
+        ("robot", list(zip(robot_keys, [r.name for r in sc.robots.all], strict=True))),
+        (
+            "obstacle and floor patch",
+            [(f"space.obstacles[{i}].name", o.name) for i, o in enumerate(sc.space.obstacles)]
+            + [
+                (f"space.floor_patches[{i}].name", p.name)
+                for i, p in enumerate(sc.space.floor_patches)
+            ],
+        ),
+    ]
+    for what, named in groups:
+        seen: set[str] = set()
+        for key, name in named:
+            if name in seen:
+                issues.append(
+                    ScenarioIssue(
+                        key,
+                        f"{what} names must be unique, repeated: {name}",
+                        name,
+                        f"a name not used by another {what}",
+                    )
+                )
+            seen.add(name)
+    for key, name in groups[2][1]:
+        if name in RESERVED_NAMES or name.startswith(RESERVED_PREFIXES):
+            issues.append(
+                ScenarioIssue(
+                    key,
+                    "name reserved for the space's own floor and walls",
+                    name,
+                    "a name other than floor and wall_*",
+                )
+            )
+    return issues
+
+
+def _check_world_frame(sc: Scenario) -> list[ScenarioIssue]:
+    """W is the parent's instrument frame at its start: the parent starts at the origin,
+    heading along x, and the floor lies the instrument's height below the origin."""
+    issues = []
+    parent = sc.robots.parent
+    why = "the world frame is the parent's instrument frame at its start"
+    if tuple(parent.start_xy) != (0.0, 0.0):
+        issues.append(
+            ScenarioIssue(
+                "robots.parent.start_xy",
+                f"the parent must start at the origin ({why})",
+                list(parent.start_xy),
+                "[0.0, 0.0] (move the space, obstacles, cameras and route instead)",
+            )
+        )
+    if parent.start_yaw_deg != 0.0:
+        issues.append(
+            ScenarioIssue(
+                "robots.parent.start_yaw_deg",
+                f"the parent must start heading along x ({why})",
+                parent.start_yaw_deg,
+                "0.0 (turn the rest of the scenario instead)",
+            )
+        )
+    if abs(sc.space.floor_z + INSTRUMENT_HEIGHT) > 1e-9:
+        issues.append(
+            ScenarioIssue(
+                "space.floor_z",
+                "the floor must lie the total station's height below the origin (the "
+                f"origin is the instrument on the parent, {INSTRUMENT_HEIGHT:.2f} m above "
+                "the floor)",
+                sc.space.floor_z,
+                f"{-INSTRUMENT_HEIGHT:.2f}",
+            )
+        )
+    return issues
 
 
 def _check_cameras(sc: Scenario) -> list[ScenarioIssue]:
@@ -103,12 +209,75 @@ def _check_robots(sc: Scenario) -> list[ScenarioIssue]:
         )
         if issue:
             issues.append(issue)
+    robots = sc.robots.all
+    feet = [
+        rectangle_corners(r.start_xy, (r.platform.length, r.platform.width), r.start_yaw)
+        for r in robots
+    ]
+    for j in range(1, len(robots)):
+        for i in range(j):
+            gap = rectangles_gap(feet[i], feet[j])
+            if gap < START_GAP:
+                issues.append(
+                    ScenarioIssue(
+                        f"robots.children[{j - 1}].start_xy",
+                        f"the start footprint of {robots[j].name!r} overlaps that of "
+                        f"{robots[i].name!r} (or comes closer than {START_GAP:.2f} m)",
+                        list(robots[j].start_xy),
+                        f"robots that start at least {START_GAP:.2f} m apart",
+                    )
+                )
+    return issues
+
+
+def _check_obstacles(sc: Scenario) -> list[ScenarioIssue]:
+    issues = []
+    for i, ob in enumerate(sc.space.obstacles):
+        lowest = ob.size[2] / ob.steps if ob.kind == "stairs" else ob.size[2]
+        if lowest <= MIN_OBSTACLE_HEIGHT:
+            what = "its lowest step" if ob.kind == "stairs" else "it"
+            issues.append(
+                ScenarioIssue(
+                    f"space.obstacles[{i}].size",
+                    f"obstacle {ob.name!r} is so low that robots would drive over {what} "
+                    f"unseen ({lowest:.3f} m; only the chassis collides with obstacles, "
+                    f"and it clears the floor by up to {MIN_OBSTACLE_HEIGHT:.2f} m)",
+                    list(ob.size),
+                    f"an obstacle{' step' if ob.kind == 'stairs' else ''} taller than "
+                    f"{MIN_OBSTACLE_HEIGHT:.2f} m",
+                )
+            )
     return issues
 
 
 def _check_patches(sc: Scenario) -> list[ScenarioIssue]:
     issues = []
+    obstacles = [
+        (ob, rectangle_corners(ob.center, ob.size[:2], ob.yaw)) for ob in sc.space.obstacles
+    ]
+    patches = [rectangle_corners(p.center, p.size) for p in sc.space.floor_patches]
     for i, patch in enumerate(sc.space.floor_patches):
+        for ob, corners in obstacles:
+            if rectangles_gap(patches[i], corners) < 0.0:
+                issues.append(
+                    ScenarioIssue(
+                        f"space.floor_patches[{i}].center",
+                        f"floor patch {patch.name!r} overlaps obstacle {ob.name!r}",
+                        list(patch.center),
+                        "a patch on free floor, clear of the obstacles",
+                    )
+                )
+        for k in range(i):
+            if rectangles_gap(patches[i], patches[k]) < 0.0:
+                other = sc.space.floor_patches[k].name
+                issues.append(
+                    ScenarioIssue(
+                        f"space.floor_patches[{i}].center",
+                        f"floor patch {patch.name!r} overlaps floor patch {other!r}",
+                        list(patch.center),
+                        "floor patches that do not overlap",
+                    )
+                )
         hx, hy = 0.5 * patch.size[0], 0.5 * patch.size[1]
         cx, cy = patch.center
         corners = [(cx - hx, cy - hy), (cx + hx, cy + hy)]

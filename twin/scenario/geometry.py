@@ -36,6 +36,33 @@ def inside_obstacle(
     return (np.abs(q[:, 0]) <= hx) & (np.abs(q[:, 1]) <= hy)
 
 
+def rectangle_corners(center: ArrayLike, size: ArrayLike, yaw: float = 0.0) -> NDArray[np.float64]:
+    """(4, 2) corners of a rectangle of (length, width) ``size`` (m) turned by ``yaw`` (rad)
+    about its ``center``."""
+    hx, hy = 0.5 * float(size[0]), 0.5 * float(size[1])
+    local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+    c, s = np.cos(yaw), np.sin(yaw)
+    return local @ np.array([[c, s], [-s, c]]) + np.asarray(center, dtype=float)
+
+
+def rectangles_gap(a: ArrayLike, b: ArrayLike) -> float:
+    """Separation of two convex polygons given by their (4, 2) corners (in order), m, along
+    the best separating axis of their edges: > 0 apart, <= 0 overlapping (or touching).
+
+    For rectangles the separating-axis test is exact about overlap; a positive value is a
+    lower bound of their distance.
+    """
+    pa, pb = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    gap = -np.inf
+    for poly in (pa, pb):
+        edges = np.roll(poly, -1, axis=0) - poly
+        for e in edges:
+            n = np.array([-e[1], e[0]]) / np.hypot(e[0], e[1])
+            qa, qb = pa @ n, pb @ n
+            gap = max(gap, float(max(qb.min() - qa.max(), qa.min() - qb.max())))
+    return gap
+
+
 def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDArray[np.bool_]:
     """(N,) True where (N, 2) points lie inside the walls, at least ``margin`` (m) from them."""
     p = np.array(points_xy, dtype=float, ndmin=2)

@@ -31,6 +31,9 @@ class Platform:
         max_accel: forward acceleration limit, m/s^2.
         max_yaw_rate: turn rate limit, rad/s.
         max_yaw_accel: turn acceleration limit, rad/s^2.
+        ground_clearance: height of the chassis' underside above the floor, m. Only the
+            chassis collides with obstacles (the wheels touch the floor only), so anything
+            lower than this passes under the robot.
         wheels_left, wheels_right: names of the driven wheel joints (= actuators).
         effective_track: kinematic track width, m: the measured wheel rotation of each
             side (as distance rolled, ``r dphi``) and the yaw actually turned satisfy
@@ -52,6 +55,7 @@ class Platform:
     max_accel: float
     max_yaw_rate: float
     max_yaw_accel: float
+    ground_clearance: float
     wheels_left: tuple[str, ...]
     wheels_right: tuple[str, ...]
     effective_track: float
@@ -79,6 +83,7 @@ PIONEER3AT = Platform(
     max_accel=0.3,
     max_yaw_rate=0.8,
     max_yaw_accel=1.0,
+    ground_clearance=0.08,
     wheels_left=("front_left_wheel", "rear_left_wheel"),
     wheels_right=("front_right_wheel", "rear_right_wheel"),
     effective_track=0.85,
@@ -96,6 +101,7 @@ PIONEER3DX = Platform(
     max_accel=0.5,
     max_yaw_rate=1.2,
     max_yaw_accel=2.0,
+    ground_clearance=0.05,
     wheels_left=("left_wheel",),
     wheels_right=("right_wheel",),
     effective_track=0.33,

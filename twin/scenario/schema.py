@@ -441,20 +441,6 @@ class Scenario(Frozen):
     sim: SimConfig = SimConfig()
     source: str = ""
 
-    @model_validator(mode="after")
-    def _unique_names(self) -> Scenario:
-        groups = {
-            "cameras": [c.name for c in self.cameras],
-            "robots": [r.name for r in self.robots.all],
-            "space.obstacles": [o.name for o in self.space.obstacles]
-            + [p.name for p in self.space.floor_patches],
-        }
-        for key, names in groups.items():
-            dup = sorted({n for n in names if names.count(n) > 1})
-            if dup:
-                raise ValueError(f"{key}: names must be unique, repeated: {', '.join(dup)}")
-        return self
-
     def camera(self, name: str) -> CameraConfig:
         """The camera called ``name``; KeyError naming the known cameras otherwise."""
         for cam in self.cameras:

@@ -174,3 +174,87 @@ def test_every_problem_is_reported_at_once(tmp_path):
 def test_duplicate_names(tmp_path):
     path = variant(tmp_path, "dup", [('name = "child2"', 'name = "child1"')])
     assert "repeated: child1" in str(_error(path))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ('name = "pillar"', 'name = "floor"', "space.obstacles[0].name"),
+        ('name = "pillar"', 'name = "wall_north"', "space.obstacles[0].name"),
+        ('name = "tilted"', 'name = "wall_top"', "space.floor_patches[0].name"),
+    ],
+)
+def test_reserved_geom_names(tmp_path, old, new, key):
+    path = variant(tmp_path, "reserved", [(old, new)])
+    issue = _only(_error(path), key)
+    assert "reserved" in issue.problem
+    assert issue.value == new.split('"')[1]
+    assert "floor and wall_*" in issue.expected
+
+
+def test_obstacle_and_patch_share_a_name(tmp_path):
+    path = variant(tmp_path, "dupgeom", [('name = "tilted"', 'name = "pillar"')])
+    issue = _only(_error(path), "space.floor_patches[0].name")
+    assert "repeated: pillar" in issue.problem
+    assert issue.value == "pillar"
+
+
+def test_robot_start_footprints_overlap(tmp_path):
+    path = variant(tmp_path, "overlap", [("start_xy = [1.5, 1.5]", "start_xy = [0.3, 0.0]")])
+    issue = _only(_error(path), "robots.children[0].start_xy")
+    assert "'child1' overlaps that of 'parent'" in issue.problem
+    assert issue.value == [0.3, 0.0]
+    assert "apart" in issue.expected
+
+
+def test_robots_may_start_close_side_by_side(tmp_path):
+    # Bumper to bumper with 0.13 m between them: their enclosing circles overlap, their
+    # footprints do not.
+    path = variant(tmp_path, "close", [("start_xy = [1.5, 1.5]", "start_xy = [0.6, 0.0]")])
+    assert load_scenario(path).robots.children[0].start_xy == (0.6, 0.0)
+
+
+def test_parent_must_start_at_the_world_origin(tmp_path):
+    path = variant(
+        tmp_path,
+        "parentoff",
+        [
+            ("start_xy = [0.0, 0.0]", "start_xy = [0.5, 0.0]\nstart_yaw_deg = 10.0"),
+            ("floor_z = -0.40", "floor_z = -0.30"),
+        ],
+    )
+    err = _error(path)
+    xy = _only(err, "robots.parent.start_xy")
+    assert "instrument frame" in xy.problem
+    assert xy.value == [0.5, 0.0]
+    assert xy.expected.startswith("[0.0, 0.0]")
+    yaw = _only(err, "robots.parent.start_yaw_deg")
+    assert yaw.value == 10.0
+    assert yaw.expected.startswith("0.0")
+    floor = _only(err, "space.floor_z")
+    assert floor.value == -0.30
+    assert floor.expected == "-0.40"
+
+
+def test_floor_patch_overlapping_an_obstacle(tmp_path):
+    path = variant(tmp_path, "patchobst", [("center = [3.0, -1.5]", "center = [6.0, -2.2]")])
+    issue = _only(_error(path), "space.floor_patches[0].center")
+    assert "overlaps obstacle 'pillar'" in issue.problem
+    assert issue.value == [6.0, -2.2]
+
+
+def test_obstacle_lower_than_the_ground_clearance(tmp_path):
+    path = variant(tmp_path, "low", [("size = [0.6, 0.6, 3.0]", "size = [0.6, 0.6, 0.06]")])
+    issue = _only(_error(path), "space.obstacles[0].size")
+    assert "drive over it unseen" in issue.problem
+    assert issue.value == [0.6, 0.6, 0.06]
+    assert issue.expected == "an obstacle taller than 0.08 m"
+
+
+def test_stairs_whose_first_step_is_below_the_ground_clearance(tmp_path):
+    stairs = '[[space.obstacles]]\nname = "steps"\nkind = "stairs"\nsteps = 50\n'
+    stairs += "center = [-1.0, -2.0]\nsize = [1.0, 1.0, 3.0]\n\n[[space.floor_patches]]"
+    path = variant(tmp_path, "lowstep", [("[[space.floor_patches]]", stairs)])
+    issue = _only(_error(path), "space.obstacles[1].size")
+    assert "its lowest step" in issue.problem
+    assert "step taller than 0.08 m" in issue.expected

@@ -69,6 +69,7 @@ def test_platform_constants_match_the_model(platform):
     assert 2 * half[0] == pytest.approx(platform.length)
     assert 2 * half[1] == pytest.approx(platform.width)
     assert model.geom_pos[chassis, 2] + half[2] == pytest.approx(platform.height)
+    assert model.geom_pos[chassis, 2] - half[2] == pytest.approx(platform.ground_clearance)
 
 
 def test_instrument_site_height():

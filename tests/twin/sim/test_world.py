@@ -119,3 +119,20 @@ def test_line_of_sight():
     dist, geom = world.ray(inst, [1.0, 0.0, 0.0], exclude_robot="parent")
     assert geom == "wall_east"
     assert dist == pytest.approx(52.0, abs=1e-6)
+
+
+def test_the_space_uses_only_reserved_names_for_its_own_geoms():
+    # Scenario validation keeps obstacle and patch names off these (MuJoCo wants unique
+    # geom names); the builder must not name anything else in the space.
+    from twin.scenario.checks import RESERVED_NAMES
+
+    world = build_world(scenario("smoke"))
+    space = world.scenario.space
+    mine = {o.name for o in space.obstacles} | {p.name for p in space.floor_patches}
+    names = {
+        mujoco.mj_id2name(world.model, mujoco.mjtObj.mjOBJ_GEOM, g)
+        for g in range(world.model.ngeom)
+        if world.model.geom_bodyid[g] == 0
+    }
+    assert names - mine <= set(RESERVED_NAMES)
+    assert set(RESERVED_NAMES) <= names
