@@ -31,6 +31,13 @@ ODOMETRY_STREAM = 1
 LED_ON_RGBA = (1.0, 0.25, 0.15, 1.0)
 LED_ON_EMISSION = 1.0
 
+# A robot touching the same geom again within this many control periods of their last
+# contact is the same collision (contacts flicker while a robot pushes against something).
+COLLISION_DEBOUNCE_TICKS = 25
+
+# Most casts of one ray that may step past geoms of the robot it ignores.
+MAX_RAY_RECASTS = 64
+
 # Geom groups that block lines of sight: the space (0) and the robots' visual geoms (2).
 SIGHT_GROUPS = np.array([1, 0, 1, 0, 0, 0], dtype=np.uint8)
 
@@ -160,7 +167,10 @@ class World:
         self._wheels = {n: h.wheel_angles(self.data) for n, h in self.robots.items()}
         self._controllers: dict[str, DriveController] = {}
         self._pose_source: dict[str, str] = {}
-        self._touching: set[tuple[str, int]] = set()
+        self._last_contact: dict[tuple[str, int], int] = {}
+        self._tick = 0
+        self._target = {n: (0.0, 0.0) for n in self.robots}
+        self._command = {n: (0.0, 0.0) for n in self.robots}
         self.collisions: list[Collision] = []
         for mid, (rgba, emission) in self._led_off.items():
             self.model.mat_rgba[mid] = rgba
@@ -186,7 +196,9 @@ class World:
         """
         new: list[Collision] = []
         for _ in range(ticks):
+            self._tick += 1
             self._control()
+            self._apply_commands()
             mujoco.mj_step(self.model, self.data, nstep=self.substeps)
             self._update_odometry()
             new += self._detect_collisions()
@@ -206,19 +218,48 @@ class World:
 
     # -- driving -----------------------------------------------------------------------------
     def set_body_velocity(self, robot: str, v: float, w: float) -> None:
-        """Command a forward speed (m/s) and a yaw rate (rad/s), turned into wheel speeds
-        with the robot's effective track and clipped to the wheels' limits."""
-        h = self.robots[robot]
-        half = 0.5 * h.platform.command_track
-        self.set_wheel_speeds(
-            robot,
-            (v - w * half) / h.platform.wheel_radius,
-            (v + w * half) / h.platform.wheel_radius,
+        """Command a forward speed (m/s) and a yaw rate (rad/s).
+
+        The command is clipped to the robot's speed and turn-rate limits and reached at
+        its acceleration limits, from the next :meth:`step` on: each control period the
+        applied (v, w) moves towards it by at most ``max_accel`` and ``max_yaw_accel``
+        times the period. The applied (v, w) becomes wheel speeds through the robot's
+        ``command_track``.
+        """
+        p = self.robots[robot].platform
+        self._target[robot] = (
+            float(np.clip(v, -p.max_speed, p.max_speed)),
+            float(np.clip(w, -p.max_yaw_rate, p.max_yaw_rate)),
         )
 
     def set_wheel_speeds(self, robot: str, left: float, right: float) -> None:
-        """Command the wheel speeds of each side, rad/s."""
-        h = self.robots[robot]
+        """Command the wheel speeds of each side, rad/s: the same as the (v, w) they
+        make through the robot's ``command_track``, with the same limits (see
+        :meth:`set_body_velocity`)."""
+        p = self.robots[robot].platform
+        r = p.wheel_radius
+        self.set_body_velocity(
+            robot, 0.5 * r * (left + right), r * (right - left) / p.command_track
+        )
+
+    def body_velocity_command(self, robot: str) -> tuple[float, float]:
+        """The (v, w) applied to the robot's wheels in the last control period."""
+        return self._command[robot]
+
+    def _apply_commands(self) -> None:
+        dt = self.control_period
+        for name, h in self.robots.items():
+            p = h.platform
+            v0, w0 = self._command[name]
+            vt, wt = self._target[name]
+            # The controllers ramp by exactly these steps: allow for rounding.
+            v = _ramp(v0, vt, p.max_accel * dt * (1.0 + 1e-9))
+            w = _ramp(w0, wt, p.max_yaw_accel * dt * (1.0 + 1e-9))
+            self._command[name] = (v, w)
+            half = 0.5 * p.command_track
+            self._set_ctrl(h, (v - w * half) / p.wheel_radius, (v + w * half) / p.wheel_radius)
+
+    def _set_ctrl(self, h: RobotHandle, left: float, right: float) -> None:
         for a in h.left_act:
             self.data.ctrl[a] = left
         for a in h.right_act:
@@ -251,9 +292,11 @@ class World:
         return ctl
 
     def stop(self, robot: str) -> None:
-        """Cancel the robot's goal and command zero wheel speed."""
+        """Cancel the robot's goal and stop its wheels at once (an emergency stop: the
+        acceleration limit does not apply)."""
         self._controllers.pop(robot, None)
-        self.set_wheel_speeds(robot, 0.0, 0.0)
+        self._target[robot] = self._command[robot] = (0.0, 0.0)
+        self._set_ctrl(self.robots[robot], 0.0, 0.0)
 
     def moving(self) -> list[str]:
         """Names of the robots that have a goal not yet reached."""
@@ -294,8 +337,7 @@ class World:
             if ctl.done:
                 status = "reached"
                 break
-        self._controllers.pop(robot, None)
-        self.set_wheel_speeds(robot, 0.0, 0.0)
+        self.stop(robot)
         pose = h.pose(self.data)
         return DriveResult(
             robot=robot,
@@ -309,7 +351,7 @@ class World:
     def _control(self) -> None:
         for name, ctl in self._controllers.items():
             if ctl.done:
-                self.set_wheel_speeds(name, 0.0, 0.0)
+                self.set_body_velocity(name, 0.0, 0.0)
                 continue
             if self._pose_source[name] == "truth":
                 pose = self.robots[name].pose(self.data)
@@ -326,32 +368,30 @@ class World:
             self._wheels[name] = (left, right)
 
     def _detect_collisions(self) -> list[Collision]:
+        """Contacts of a chassis with anything; a (robot, geom) pair counts as a new
+        collision unless it was in contact within the last ``COLLISION_DEBOUNCE_TICKS``."""
         n = self.data.ncon
-        touching: set[tuple[str, int]] = set()
         new: list[Collision] = []
         if n:
             g1 = self.data.contact.geom1[:n]
             g2 = self.data.contact.geom2[:n]
+            seen: set[tuple[str, int]] = set()
             for k in np.flatnonzero(self._is_chassis[g1] | self._is_chassis[g2]):
                 a, b = int(g1[k]), int(g2[k])
                 for mine, other in ((a, b), (b, a)):
                     if not self._is_chassis[mine]:
                         continue
                     key = (self._chassis_robot[mine], other)
-                    if key in touching:
+                    if key in seen:
                         continue
-                    touching.add(key)
-                    if key not in self._touching:
-                        name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, other)
-                        new.append(
-                            Collision(
-                                self.time,
-                                key[0],
-                                name or f"geom{other}",
-                                self.data.contact.pos[k].copy(),
-                            )
-                        )
-        self._touching = touching
+                    seen.add(key)
+                    last = self._last_contact.get(key)
+                    self._last_contact[key] = self._tick
+                    if last is not None and self._tick - last <= COLLISION_DEBOUNCE_TICKS:
+                        continue
+                    name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, other)
+                    pos = self.data.contact.pos[k].copy()
+                    new.append(Collision(self.time, key[0], name or f"geom{other}", pos))
         self.collisions += new
         return new
 
@@ -426,7 +466,7 @@ class World:
 
         Args:
             origin: (3,) start, m. direction: (3,) direction (any length).
-            exclude_robot: a robot whose root body is ignored (e.g. the one looking).
+            exclude_robot: a robot whose geoms are all ignored (e.g. the one looking).
 
         Returns:
             (distance along the unit direction in m, name of the geom hit), or
@@ -435,12 +475,25 @@ class World:
         o = np.asarray(origin, dtype=float).reshape(3)
         d = np.asarray(direction, dtype=float).reshape(3)
         d = d / np.linalg.norm(d)
-        gid = np.array([-1], dtype=np.int32)
+        skip = self.robots[exclude_robot].geoms if exclude_robot else frozenset()
         body = self.robots[exclude_robot].body if exclude_robot else -1
-        dist = mujoco.mj_ray(self.model, self.data, o, d, SIGHT_GROUPS, 1, body, gid)
-        if dist < 0:
-            return float("inf"), None
-        return float(dist), mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, int(gid[0]))
+        gid = np.array([-1], dtype=np.int32)
+        start, travelled = o, 0.0
+        # mj_ray ignores one body only: step past any hit on the excluded robot's other
+        # bodies (its wheels, say) and cast again from there.
+        for _ in range(MAX_RAY_RECASTS):
+            dist = mujoco.mj_ray(self.model, self.data, start, d, SIGHT_GROUPS, 1, body, gid)
+            if dist < 0:
+                return float("inf"), None
+            g = int(gid[0])
+            if g not in skip:
+                name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g)
+                return travelled + float(dist), name
+            step = float(dist) + 1e-6
+            travelled += step
+            start = start + step * d
+            body = int(self.model.geom_bodyid[g])
+        raise RuntimeError(f"ray from {o} kept hitting robot {exclude_robot!r}")
 
     def line_of_sight(
         self,
@@ -472,3 +525,9 @@ def build_world(scenario: Scenario, control_period: float = 0.02) -> World:
 
 
 __all__ = ["SPACE_GROUP", "Collision", "DriveResult", "World", "build_spec", "build_world"]
+
+
+def _ramp(current: float, target: float, step: float) -> float:
+    if target > current:
+        return min(target, current + step)
+    return max(target, current - step)

@@ -154,3 +154,56 @@ def test_controller_is_not_done_off_the_goal():
     assert not ctl.done
     assert ctl.phase is DrivePhase.TURN_TO_GOAL
     assert ctl.w > 0.0  # towards the goal, on the left
+
+
+def test_pushing_against_a_wall_is_one_collision_and_a_new_contact_another():
+    world = build_world(scenario("smoke"))
+    result = world.drive_to("child2", (1.5, -6.0))  # the south wall is at y = -3
+    assert result.status == "collision"
+    # Keep pushing: the contact flickers, but it is the same collision.
+    world.set_body_velocity("child2", 0.3, 0.0)
+    world.run(4.0)
+    assert [c.other for c in world.collisions] == ["wall_south"]
+    # Back off, wait, drive in again: a new collision.
+    world.set_body_velocity("child2", -0.3, 0.0)
+    world.run(2.0)
+    world.set_body_velocity("child2", 0.0, 0.0)
+    world.run(1.0)
+    assert len(world.collisions) == 1
+    world.set_body_velocity("child2", 0.3, 0.0)
+    world.run(3.0)
+    assert [c.other for c in world.collisions] == ["wall_south", "wall_south"]
+
+
+@pytest.mark.parametrize("robot", ["parent", "child1"])
+@pytest.mark.parametrize("via", ["body", "wheels"])
+def test_direct_commands_keep_the_speed_and_acceleration_limits(robot, via):
+    world = build_world(scenario("smoke"))
+    h = world.robots[robot]
+    p = h.platform
+    if via == "body":
+        world.set_body_velocity(robot, 10.0, 0.0)
+    else:
+        world.set_wheel_speeds(robot, 20.0, 20.0)
+    commands, speeds = [], []
+    for _ in range(150):
+        world.step()
+        commands.append(world.body_velocity_command(robot)[0])
+        speeds.append(np.linalg.norm(world.data.qvel[h.qvel : h.qvel + 2]))
+    commands, speeds = np.array(commands), np.array(speeds)
+    dt = world.control_period
+    assert commands.max() == pytest.approx(p.max_speed)
+    assert np.diff(commands).max() <= p.max_accel * dt * (1 + 1e-6)
+    assert speeds.max() <= p.max_speed * 1.05
+    accel = (speeds[5:] - speeds[:-5]) / (5 * dt)
+    assert accel.max() <= p.max_accel * 1.3
+    # Turning: the yaw rate command is clipped and ramped too; a stop is immediate.
+    world.set_body_velocity(robot, 0.0, -10.0)
+    rates = []
+    for _ in range(100):
+        world.step()
+        rates.append(world.body_velocity_command(robot)[1])
+    assert min(rates) == pytest.approx(-p.max_yaw_rate)
+    assert np.diff(rates).min() >= -p.max_yaw_accel * dt * (1 + 1e-6)
+    world.stop(robot)
+    assert world.body_velocity_command(robot) == (0.0, 0.0)

@@ -136,3 +136,19 @@ def test_the_space_uses_only_reserved_names_for_its_own_geoms():
     }
     assert names - mine <= set(RESERVED_NAMES)
     assert set(RESERVED_NAMES) <= names
+
+
+def test_a_ray_ignores_every_body_of_the_excluded_robot():
+    world = build_world(scenario("smoke"))
+    inst, _ = world.instrument_pose("parent")
+    wheel = world.data.xpos[
+        mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, "parent/front_left_wheel")
+    ]
+    direction = wheel - inst
+    dist, geom = world.ray(inst, direction)
+    assert geom.startswith("parent/")
+    # Past the chassis and the wheel, down to the floor.
+    dist, geom = world.ray(inst, direction, exclude_robot="parent")
+    assert geom == "floor"
+    unit = direction / np.linalg.norm(direction)
+    assert dist == pytest.approx((world.scenario.space.floor_z - inst[2]) / unit[2], abs=1e-5)
