@@ -1,8 +1,16 @@
-"""Typed failures of the total station: the instrument reports no number, and says why.
+"""Typed failures of the total station and of the measurements built on it.
 
 Every failure is an :class:`InstrumentError` carrying a :class:`FailureReason`, so a caller
 can either catch the specific subclass or switch on ``error.reason``. A failure is never
-turned into a silent wrong number.
+turned into a silent wrong number. Two kinds:
+
+- the instrument reports no number (out of range, no prism, blocked, tilted);
+- the instrument reported numbers but they fail a chi-square consistency test
+  (:class:`ConsistencyError`): the three cubes of a marker do not fit the assembly (a wrong
+  prism locked, or the child moved between the shots), or the children measured after the
+  parent moved do not fit their world positions (a child moved, or a wrong prism). The
+  error's ``details`` hold ``chi2``, ``dof``, ``threshold`` and ``false_alarm_rate``; the
+  caller can count it and measure again (re-aim).
 """
 
 from __future__ import annotations
@@ -18,6 +26,8 @@ class FailureReason(enum.Enum):
     NO_PRISM_IN_CONE = "no_prism_in_cone"
     LINE_OF_SIGHT_BLOCKED = "line_of_sight_blocked"
     TILT_OUT_OF_RANGE = "tilt_out_of_range"
+    INCONSISTENT_MARKER = "inconsistent_marker"
+    INCONSISTENT_CHILDREN = "inconsistent_children"
 
 
 class InstrumentError(RuntimeError):
@@ -52,3 +62,25 @@ class TiltOutOfRangeError(InstrumentError):
     """The instrument is tilted beyond the compensator's working range."""
 
     reason = FailureReason.TILT_OUT_OF_RANGE
+
+
+class ConsistencyError(InstrumentError):
+    """Measurements fail their chi-square consistency test: no pose is returned from them.
+
+    ``details`` hold ``chi2``, ``dof``, ``threshold`` and ``false_alarm_rate`` (the
+    probability that consistent data raise this error).
+    """
+
+
+class InconsistentMarkerError(ConsistencyError):
+    """The three cube shots of a child do not fit the marker assembly: a wrong prism was
+    locked (e.g. cube 1 instead of cube 0 on a far child), or the child moved between shots."""
+
+    reason = FailureReason.INCONSISTENT_MARKER
+
+
+class InconsistentChildrenError(ConsistencyError):
+    """The children measured from the parent's new station do not fit their world
+    positions: a child moved between the two measurements, or a wrong prism was locked."""
+
+    reason = FailureReason.INCONSISTENT_CHILDREN

@@ -9,6 +9,15 @@ Covariances are first order. A pose perturbation is (d_theta, d_t), 6 values: a 
 rotation vector applied on the left (``R -> exp([d_theta]x) R``, rad, in ``frame``) and a
 translation (m). The fit is unweighted, so its covariance is the sandwich
 ``A Sigma A^T`` with ``A = (J^T J)^-1 J^T`` and ``Sigma`` the (9, 9) cube covariance.
+
+Consistency: three cubes give 9 coordinates for 6 pose parameters; the 3 redundant ones
+are the triangle's shape. The fit residual lies, to first order, in the 3-dimensional
+complement of the pose Jacobian's range; projected onto it with its covariance it gives a
+chi-square statistic with 3 degrees of freedom (:attr:`MarkerPose.chi2`). A wrong prism
+lock or a child that moved between shots deforms the measured triangle and makes it large
+(the assembly is scalene, so no relabelling of the cubes fits; see
+:mod:`twin.instruments.marker`). :func:`marker_consistency_chi2` computes the same
+statistic, to first order, from the three side lengths, vectorised.
 """
 
 from __future__ import annotations
@@ -19,7 +28,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from twin.instruments.consistency import NUMERICAL_FLOOR, chi2_statistic
 from twin.instruments.marker import MarkerAssembly
+
+MARKER_DOF = 3
+"""Redundancy of a marker pose fitted to three cubes: 9 coordinates - 6 pose parameters."""
+
+_SIDES = ((0, 1), (1, 2), (2, 0))
 
 
 def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -70,12 +85,17 @@ class MarkerPose:
         covariance: (6, 6) covariance of (d_theta rad, d_t m), see the module text.
         rms_residual: root-mean-square distance between the fitted and measured cubes, m.
             Millimetres are noise; centimetres mean a wrong prism or a wrong assembly.
+        chi2: the residual's chi-square statistic with its covariance (``dof`` = 3
+            degrees of freedom, mean 3 for consistent data); None without a covariance.
+        dof: degrees of freedom of ``chi2``.
     """
 
     rotation: NDArray[np.float64]
     translation: NDArray[np.float64]
     covariance: NDArray[np.float64]
     rms_residual: float
+    chi2: float | None = None
+    dof: int = MARKER_DOF
 
     def transform(self, points_body: ArrayLike) -> NDArray[np.float64]:
         """Map (N, 3) body points to ``frame``, m."""
@@ -103,7 +123,9 @@ def fit_marker_pose(
             m^2; None gives a zero pose covariance.
 
     Returns:
-        The pose and its (6, 6) covariance.
+        The pose, its (6, 6) covariance and, with a covariance, the residual's chi-square
+        (see the module text). The caller decides what chi2 is too large
+        (:func:`twin.instruments.consistency.raise_if_inconsistent`).
     """
     m = check_cubes(cubes_measured, "cubes_measured")
     sigma = check_cube_covariance(covariance)
@@ -123,7 +145,45 @@ def fit_marker_pose(
     a = np.linalg.solve(jac.T @ jac, jac.T)
     cov = a @ sigma @ a.T
     object.__setattr__(pose, "covariance", 0.5 * (cov + cov.T))
+    if covariance is not None:
+        # Orthonormal basis of the residual space (left null space of the pose Jacobian).
+        basis = np.linalg.svd(jac, full_matrices=True)[0][:, 6:]
+        z = basis.T @ residual.reshape(9)
+        object.__setattr__(pose, "chi2", chi2_statistic(z, basis.T @ sigma @ basis))
     return pose
+
+
+def marker_consistency_chi2(
+    cubes_measured: ArrayLike, cube_covariances: ArrayLike, marker: MarkerAssembly
+) -> NDArray[np.float64]:
+    """Vectorised chi-square (3 dof) of measured cubes against the assembly's triangle.
+
+    Compares the three measured side lengths with the assembly's; to first order this is
+    the same statistic as :attr:`MarkerPose.chi2` of :func:`fit_marker_pose`.
+
+    Args:
+        cubes_measured: (..., 3, 3) measured cubes in the order of ``marker.cubes_body``, m.
+        cube_covariances: (..., 3, 3, 3) covariance of each cube (shots independent), m^2.
+        marker: the assembly geometry.
+
+    Returns:
+        (...,) chi-square values.
+    """
+    m = np.asarray(cubes_measured, dtype=float)
+    cov = np.asarray(cube_covariances, dtype=float)
+    b = marker.cubes_body
+    diff = np.stack([m[..., i, :] - m[..., j, :] for i, j in _SIDES], axis=-2)  # (..., 3, 3)
+    length = np.linalg.norm(diff, axis=-1)
+    body = np.array([np.linalg.norm(b[i] - b[j]) for i, j in _SIDES])
+    e = length - body
+    u = diff / np.maximum(length, NUMERICAL_FLOOR)[..., None]  # coincident cubes: u = 0
+    jac = np.zeros((*m.shape[:-2], 3, 3, 3))  # (..., side, cube, xyz)
+    for k, (i, j) in enumerate(_SIDES):
+        jac[..., k, i, :] = u[..., k, :]
+        jac[..., k, j, :] = -u[..., k, :]
+    cov_e = np.einsum("...kci,...cij,...lcj->...kl", jac, cov, jac)
+    cov_e = cov_e + NUMERICAL_FLOOR**2 * np.eye(3)
+    return np.einsum("...k,...k->...", e, np.linalg.solve(cov_e, e[..., None])[..., 0])
 
 
 def led_positions(

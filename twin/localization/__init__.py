@@ -1,12 +1,15 @@
 """Cooperative positioning (CPS): solvers, covariance propagation and the step record.
 
 - :mod:`.planar`: Rz, paper eq. (1) and its inverse.
-- :mod:`.checks`: input checks, ``PoorGeometryWarning``.
+- :mod:`.checks`: input checks, ``PoorGeometryWarning``, ``ConvergenceWarning``.
 - :mod:`.pose`: ``ParentPose`` and ``CpsSolution``.
 - :mod:`.closed_form`: the paper's two-child closed form (eq. 2) with covariance.
 - :mod:`.wls`: generalised least squares for two or more children.
+  Both raise ``InconsistentChildrenError`` when the children do not fit their world
+  positions (chi-square test at ``false_alarm_rate``).
 - :mod:`.propagation`: measured points (cubes, LEDs) to the world with the parent's error.
-- :mod:`.observation`: ``ChildObservation`` (a child's cube centroid as measured).
+- :mod:`.observation`: ``ChildObservation`` (a child's cube centroid as measured; the
+  marker fit rejects a wrong prism with ``InconsistentMarkerError``).
 - :mod:`.sequence`: ``CpsSequence``, the joint estimate and the record of every step.
 - :mod:`.leapfrog`: a pure-numpy straight leapfrog simulator and Monte Carlo.
 """

@@ -20,8 +20,16 @@ DEFAULT_MAX_YAW_STD = 1e-2
 """Predicted yaw standard deviation (rad, about 0.57 deg) above which a warning is raised."""
 
 
+PSD_TOLERANCE = 1e-10
+"""Most negative eigenvalue accepted in a covariance, relative to its largest (rounding)."""
+
+
 class PoorGeometryWarning(UserWarning):
     """The yaw of the parent is observable but poorly: see the message's predicted figure."""
+
+
+class ConvergenceWarning(UserWarning):
+    """An iterative CPS solver stopped at its iteration limit before its step tolerance."""
 
 
 def check_children_points(points: ArrayLike, name: str) -> NDArray[np.float64]:
@@ -85,7 +93,9 @@ def check_cps_input(
 
 
 def check_covariance(cov: ArrayLike, n: int, name: str) -> NDArray[np.float64]:
-    """Return a finite symmetric (n, n) covariance, or raise ValueError."""
+    """Return a finite, symmetric, positive semidefinite (n, n) covariance, or raise
+    ValueError naming ``name`` (eigenvalues down to ``-PSD_TOLERANCE`` times the largest
+    are accepted as rounding)."""
     c = np.asarray(cov, dtype=float)
     if c.shape != (n, n):
         raise ValueError(f"{name} must have shape ({n}, {n}), got {c.shape}")
@@ -93,6 +103,12 @@ def check_covariance(cov: ArrayLike, n: int, name: str) -> NDArray[np.float64]:
         raise ValueError(f"{name} contains NaN or inf")
     if not np.allclose(c, c.T, rtol=1e-8, atol=1e-15):
         raise ValueError(f"{name} must be symmetric")
+    eig = np.linalg.eigvalsh(0.5 * (c + c.T))
+    if eig[0] < -PSD_TOLERANCE * np.abs(eig).max():
+        raise ValueError(
+            f"{name} is not positive semidefinite (smallest eigenvalue {eig[0]:.3g}); a "
+            "covariance cannot have negative variances"
+        )
     return c
 
 

@@ -9,12 +9,14 @@ by the tests and ``benchmarks/bench_cps.py``. One CPS step k (k = 0 .. n_steps-1
 4. it measures the stationary children again and solves its pose.
 
 Each child is represented by the centroid of its three cubes (see
-:mod:`twin.localization.observation`). Every shot goes through the instrument model of
-:func:`twin.instruments.shot.measure_points`: noise in the tilted instrument frame,
-levelling with a noisy inclination reading, rounding to the output resolution. The parent
-stops with a position and heading error and stands tilted (within the compensator's range);
-the children stop with position and heading errors. The world frame is the parent's
-levelled frame at station 0, whose pose is therefore exactly known.
+:mod:`twin.localization.observation`); the fit of its three cubes to the marker assembly is
+kept as a chi-square (:func:`twin.instruments.marker_pose.marker_consistency_chi2`) and
+tested by :func:`run_cps` as :func:`observe_child` tests a real observation. Every shot
+goes through the instrument model of :func:`twin.instruments.shot.measure_points`: noise
+in the tilted instrument frame, levelling with a noisy inclination reading, rounding to the
+output resolution. The parent stops with a position and heading error and stands tilted
+(within the compensator's range); the children stop with position and heading errors. The
+world frame is the parent's levelled frame at station 0, whose pose is therefore exactly known.
 
 Formations (positions relative to the parent's next station, x along the corridor):
 
@@ -22,6 +24,10 @@ Formations (positions relative to the parent's next station, x along the corrido
   ``near_gap + child_spacing``, staggered by +/- ``stagger`` across so the near child's mast
   does not hide the far child's cubes;
 - ``SIDE_BY_SIDE``: both at ``near_gap`` ahead, at +/- ``half_width`` across the corridor.
+
+The data are clean (every prism locked right, no child moves), so every consistency error
+in :func:`evaluate` is a false alarm; it counts them (``LeapfrogResult.rejected_runs``),
+and they should number about ``false_alarm_rate`` times the number of tests.
 """
 
 from __future__ import annotations
@@ -34,7 +40,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.instruments.consistency import (
+    DEFAULT_FALSE_ALARM_RATE,
+    check_false_alarm_rate,
+    raise_if_inconsistent,
+)
+from twin.instruments.errors import ConsistencyError, FailureReason, InconsistentMarkerError
 from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import MARKER_DOF, marker_consistency_chi2
+from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import polar_to_cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.tilt import tilt_rotation
@@ -95,10 +109,27 @@ class LeapfrogConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.formation, Formation):
             raise ValueError(f"formation must be a Formation, got {self.formation!r}")
-        for name in ("route_length", "step_length", "near_gap", "instrument_height"):
+        for name in (
+            "route_length",
+            "step_length",
+            "near_gap",
+            "instrument_height",
+            "child_spacing",
+            "half_width",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"LeapfrogConfig.{name} must be positive, got {value}")
+        for name in (
+            "stagger",
+            "stop_sigma",
+            "heading_sigma",
+            "child_heading_sigma",
+            "max_tilt",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"LeapfrogConfig.{name} must be non-negative, got {value}")
         ratio = self.route_length / self.step_length
         if abs(ratio - round(ratio)) > 1e-9:
             raise ValueError(
@@ -142,6 +173,8 @@ class LeapfrogData:
         before, before_cov: (R, S, 2, 3) children measured from station k (levelled frame)
             and (R, S, 2, 3, 3) their covariance.
         after, after_cov: the same measured from station k + 1.
+        before_marker_chi2, after_marker_chi2: (R, S, 2) chi-square (3 dof) of each
+            child's three measured cubes against the marker assembly.
     """
 
     config: LeapfrogConfig
@@ -151,6 +184,8 @@ class LeapfrogData:
     before_cov: NDArray[np.float64]
     after: NDArray[np.float64]
     after_cov: NDArray[np.float64]
+    before_marker_chi2: NDArray[np.float64] | None = None
+    after_marker_chi2: NDArray[np.float64] | None = None
 
     @property
     def n_runs(self) -> int:
@@ -186,7 +221,7 @@ def simulate_leapfrog(
     )
     ref_w = np.einsum("...ij,j->...i", rot_child, config.marker.reference_body) + floor
 
-    def measure(station: NDArray[np.int64]) -> tuple[NDArray, NDArray]:
+    def measure(station: NDArray[np.int64]) -> tuple[NDArray, NDArray, NDArray]:
         pose = parent[:, station]  # (r, s, 4)
         rot_p = rot_z(pose[..., 0])[:, :, None, None]  # (r, s, 1, 1, 3, 3)
         level = np.einsum("...ji,...j->...i", rot_p, cubes_w - pose[:, :, None, None, 1:])
@@ -201,20 +236,51 @@ def simulate_leapfrog(
             config.inclinometer,
             rng,
         )
-        return reference_from_cubes(
-            polar_to_cartesian(polar), polar, config.spec, config.inclinometer
+        cubes = polar_to_cartesian(polar)
+        point, cov = reference_from_cubes(cubes, polar, config.spec, config.inclinometer)
+        cube_cov = cartesian_covariance(polar, config.spec, config.inclinometer)
+        return point, cov, marker_consistency_chi2(cubes, cube_cov, config.marker)
+
+    before, before_cov, before_chi2 = measure(np.arange(s))
+    after, after_cov, after_chi2 = measure(np.arange(1, s + 1))
+    return LeapfrogData(
+        config, parent, ref_w, before, before_cov, after, after_cov, before_chi2, after_chi2
+    )
+
+
+def _check_markers(
+    data: LeapfrogData, chi2: NDArray | None, run: int, k: int, rate: float | None
+) -> None:
+    if chi2 is None:
+        return
+    for i, name in enumerate(CHILDREN):
+        raise_if_inconsistent(
+            float(chi2[run, k, i]),
+            MARKER_DOF,
+            rate,
+            InconsistentMarkerError,
+            f"run {run}, step {k}, child {name!r}: the three cubes do not fit the marker",
+            child=name,
         )
 
-    before, before_cov = measure(np.arange(s))
-    after, after_cov = measure(np.arange(1, s + 1))
-    return LeapfrogData(config, parent, ref_w, before, before_cov, after, after_cov)
 
+def run_cps(
+    data: LeapfrogData,
+    run: int,
+    solver: str = "wls",
+    false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+) -> CpsSequence:
+    """Run the CPS estimator over one simulated run; returns the full sequence record.
 
-def run_cps(data: LeapfrogData, run: int, solver: str = "wls") -> CpsSequence:
-    """Run the CPS estimator over one simulated run; returns the full sequence record."""
-    seq = CpsSequence(CHILDREN, solver=solver)
+    Raises:
+        InconsistentMarkerError, InconsistentChildrenError: a consistency test failed at
+            ``false_alarm_rate`` (None: no test), as in a campaign.
+    """
+    rate = check_false_alarm_rate(false_alarm_rate)
+    seq = CpsSequence(CHILDREN, solver=solver, false_alarm_rate=rate)
     for k in range(data.config.n_steps):
         t0 = 2.0 * k * STEP_DURATION
+        _check_markers(data, data.before_marker_chi2, run, k, rate)
         seq.children_moved(
             [
                 ChildObservation(name, data.before[run, k, i], data.before_cov[run, k, i], t0)
@@ -222,6 +288,7 @@ def run_cps(data: LeapfrogData, run: int, solver: str = "wls") -> CpsSequence:
             ]
         )
         t1 = t0 + STEP_DURATION
+        _check_markers(data, data.after_marker_chi2, run, k, rate)
         seq.parent_moved(
             [
                 ChildObservation(name, data.after[run, k, i], data.after_cov[run, k, i], t1)
@@ -235,12 +302,17 @@ def run_cps(data: LeapfrogData, run: int, solver: str = "wls") -> CpsSequence:
 class LeapfrogResult:
     """Final errors of the parent over a batch of runs, with the predicted covariance.
 
+    R counts the runs that completed; runs stopped by a consistency error are listed in
+    ``rejected_runs`` (on clean data, false alarms) and left out of the arrays.
+
     Attributes:
         solver: ``"closed_form"`` or ``"wls"``.
         position_error: (R, 3) estimated minus true final position, m.
         yaw_error: (R,) estimated minus true final yaw, rad.
         covariance: (R, 4, 4) predicted covariance of (yaw, x, y, z).
         seconds_per_step: mean wall time of one CPS step (children + parent update), s.
+        rejected_runs: indices of the runs stopped by a consistency error.
+        rejected_reasons: the reason for each of ``rejected_runs``.
     """
 
     solver: str
@@ -248,6 +320,8 @@ class LeapfrogResult:
     yaw_error: NDArray[np.float64]
     covariance: NDArray[np.float64]
     seconds_per_step: float
+    rejected_runs: tuple[int, ...] = ()
+    rejected_reasons: tuple[FailureReason, ...] = ()
 
     @property
     def position_nees(self) -> NDArray[np.float64]:
@@ -273,21 +347,46 @@ class LeapfrogResult:
         return np.sqrt(np.trace(self.covariance[:, 1:, 1:], axis1=1, axis2=2))
 
 
-def evaluate(data: LeapfrogData, solver: str) -> LeapfrogResult:
-    """Run the estimator over every run of ``data`` and collect the final errors."""
+def evaluate(
+    data: LeapfrogData,
+    solver: str,
+    false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+) -> LeapfrogResult:
+    """Run the estimator over every run of ``data`` and collect the final errors.
+
+    A run stopped by a consistency error is counted in ``rejected_runs`` and left out.
+    """
     r = data.n_runs
     pos_err = np.empty((r, 3))
     yaw_err = np.empty(r)
     cov = np.empty((r, 4, 4))
+    done = np.zeros(r, dtype=bool)
+    rejected: list[int] = []
+    reasons: list[FailureReason] = []
     start = time.perf_counter()
     for i in range(r):
-        final = run_cps(data, i, solver).parent
+        try:
+            seq = run_cps(data, i, solver, false_alarm_rate)
+        except ConsistencyError as error:
+            rejected.append(i)
+            reasons.append(error.reason)
+            continue
+        final = seq.parent
         truth = data.parent_truth[i, -1]
         pos_err[i] = final.translation - truth[1:]
         yaw_err[i] = wrap_angle(final.yaw - truth[0])
         cov[i] = final.covariance
+        done[i] = True
     elapsed = time.perf_counter() - start
-    return LeapfrogResult(solver, pos_err, yaw_err, cov, elapsed / (r * data.config.n_steps))
+    return LeapfrogResult(
+        solver,
+        pos_err[done],
+        yaw_err[done],
+        cov[done],
+        elapsed / (r * data.config.n_steps),
+        tuple(rejected),
+        tuple(reasons),
+    )
 
 
 def monte_carlo_leapfrog(

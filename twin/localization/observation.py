@@ -4,6 +4,14 @@ CPS positions each child by one point: the centroid of its three corner cubes
 (:attr:`MarkerAssembly.reference_body`). It is the mean of the three measured cubes, does
 not depend on the child's heading, and averages the three shots' noise. The three raw
 shots stay in the record for the marker pose (LED positions) and a later global adjustment.
+
+The centroid alone cannot tell a wrong prism: if the automatic aim locked cube 1 for the
+shot at cube 0 (it may, on a far child; see :mod:`twin.instruments.aim`), the mean of
+(cube 1, cube 1, cube 2) is a point a few centimetres off, with a millimetre covariance.
+:func:`observe_child` therefore fits the marker pose to the three cubes, labelled by the
+aim (shot i at cube i), and raises :class:`InconsistentMarkerError` when the fit's
+chi-square (3 degrees of freedom, see :mod:`twin.instruments.marker_pose`) exceeds its
+quantile at ``false_alarm_rate`` (:mod:`twin.instruments.consistency`).
 """
 
 from __future__ import annotations
@@ -14,10 +22,18 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.instruments.marker_pose import cube_centroid
+from twin.instruments.consistency import (
+    DEFAULT_FALSE_ALARM_RATE,
+    check_false_alarm_rate,
+    raise_if_inconsistent,
+)
+from twin.instruments.errors import InconsistentMarkerError
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import MARKER_DOF, MarkerPose, cube_centroid, fit_marker_pose
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import TotalStationMeasurement
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.localization.checks import check_covariance
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,6 +47,8 @@ class ChildObservation:
         timestamp: time of the measurement, s.
         shots: the raw total-station measurements it was computed from (may be empty in
             fast simulations that only keep the point).
+        marker_pose: the marker assembly's pose fitted to the three cubes, levelled frame
+            (None in fast simulations that only keep the point).
     """
 
     child: str
@@ -38,6 +56,7 @@ class ChildObservation:
     covariance: NDArray[np.float64]
     timestamp: float = 0.0
     shots: tuple[TotalStationMeasurement, ...] = ()
+    marker_pose: MarkerPose | None = None
 
     def __post_init__(self) -> None:
         p = np.array(self.point_level, dtype=float).reshape(-1)
@@ -51,6 +70,7 @@ class ChildObservation:
             raise ValueError(
                 f"observation of {self.child!r} contains NaN or inf: point {p.tolist()}"
             )
+        check_covariance(c, 3, f"covariance of the observation of {self.child!r}")
         p.setflags(write=False)
         c.setflags(write=False)
         object.__setattr__(self, "point_level", p)
@@ -62,13 +82,53 @@ def observe_child(
     cube_shots: Sequence[TotalStationMeasurement],
     spec: TotalStationSpec,
     inclinometer: InclinometerSpec | None = None,
+    *,
+    marker: MarkerAssembly | None = None,
+    false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
 ) -> ChildObservation:
-    """Build a child's observation from the three shots at its cubes (in cube order)."""
+    """Build a child's observation from the three shots at its cubes.
+
+    Args:
+        child: the child's name.
+        cube_shots: the shots aimed at cube 0, 1, 2 of ``marker.cubes_body``, in that order.
+        spec: the total station's specification (noise and resolution).
+        inclinometer: the inclination sensor's specification; its noise enters the
+            covariance. Required when the shots carry tilt readings (levelled shots): leaving
+            it out would drop the levelling error from the covariance.
+        marker: the assembly geometry; default :class:`MarkerAssembly`'s.
+        false_alarm_rate: probability that consistent shots raise
+            :class:`InconsistentMarkerError`; None switches the test off.
+
+    Raises:
+        InconsistentMarkerError: the three cubes do not fit the assembly (wrong prism
+            locked, or the child moved between shots); ``details`` hold ``chi2``, ``dof``,
+            ``threshold``, ``rms_residual`` (m) and ``child``. Measure again.
+        ValueError: not three shots, or levelled shots without ``inclinometer``.
+    """
+    rate = check_false_alarm_rate(false_alarm_rate)
     if len(cube_shots) != 3:
         raise ValueError(f"observation of {child!r} needs 3 cube shots, got {len(cube_shots)}")
+    if inclinometer is None and any(s.tilt is not None for s in cube_shots):
+        raise ValueError(
+            f"observation of {child!r}: the shots were levelled with tilt readings; pass the "
+            "inclinometer spec so that the levelling noise enters the covariance "
+            "(InclinometerSpec(sigma=0.0) for an exact sensor)"
+        )
     polar = np.array([s.polar for s in cube_shots])
     cubes = np.array([s.to_cartesian() for s in cube_shots])
     cov = cartesian_covariance(polar, spec, inclinometer)
+    pose = fit_marker_pose(cubes, marker if marker is not None else MarkerAssembly(), cov)
+    assert pose.chi2 is not None
+    raise_if_inconsistent(
+        pose.chi2,
+        MARKER_DOF,
+        rate,
+        InconsistentMarkerError,
+        f"child {child!r}: the three cube shots do not fit the marker assembly "
+        f"(rms residual {pose.rms_residual * 1e3:.1f} mm; wrong prism or child moved)",
+        rms_residual=pose.rms_residual,
+        child=child,
+    )
     point, point_cov = cube_centroid(cubes, cov)
     return ChildObservation(
         child=child,
@@ -76,6 +136,7 @@ def observe_child(
         covariance=point_cov,
         timestamp=max(s.timestamp for s in cube_shots),
         shots=tuple(cube_shots),
+        marker_pose=pose,
     )
 
 

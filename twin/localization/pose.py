@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.localization.checks import PoorGeometryWarning
+from twin.localization.checks import PoorGeometryWarning, check_covariance
 from twin.localization.planar import level2world, rot_z
 
 
@@ -37,6 +37,7 @@ class ParentPose:
             )
         if not (np.isfinite(self.yaw) and np.all(np.isfinite(t)) and np.all(np.isfinite(c))):
             raise ValueError(f"parent pose must be finite, got yaw={self.yaw}, t={t}")
+        check_covariance(c, 4, "the parent pose's covariance")
         t.setflags(write=False)
         c.setflags(write=False)
         object.__setattr__(self, "yaw", float(self.yaw))
@@ -78,9 +79,13 @@ class CpsSolution:
         children_jacobian: (4, 3N) d pose / d children world positions.
         measurement_jacobian: (4, 3N) d pose / d children measurements (levelled frame).
         baseline: horizontal baseline of the children, m.
-        chi2: weighted squared residual (WLS only; None for the closed form).
+        chi2: chi-square of the redundant equations with their predicted covariance:
+            the weighted squared residual (WLS), or the baseline-length and
+            height-difference mismatch (closed form). Mean ``dof`` for consistent data.
         dof: redundancy 3N - 4 (WLS) or 2 (closed form: the unused equations).
         iterations: Gauss-Newton iterations (0 for the closed form).
+        converged: False if Gauss-Newton stopped at its iteration limit (a
+            :class:`ConvergenceWarning` was raised).
     """
 
     pose: ParentPose
@@ -91,6 +96,7 @@ class CpsSolution:
     chi2: float | None = None
     dof: int = 0
     iterations: int = 0
+    converged: bool = True
 
     @property
     def yaw_std(self) -> float:

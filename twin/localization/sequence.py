@@ -15,6 +15,11 @@ Both updates are one linear map ``x' = A x + B noise``, ``P' = A P A^T + B Cov B
 nothing is double-counted and the error grows with distance as the paper's Table III shows.
 The same object serves a campaign, a Monte Carlo run, a gym environment and a later
 global adjustment (which reads :attr:`CpsSequence.steps`).
+
+A parent step whose children fail the solver's chi-square test raises
+:class:`InconsistentChildrenError` (a child moved between the two measurements, or a wrong
+prism) and leaves the sequence unchanged: the caller can count it, measure again and call
+:meth:`CpsSequence.parent_moved` with the new observations.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, check_false_alarm_rate
 from twin.localization.checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
 from twin.localization.closed_form import solve_closed_form
 from twin.localization.observation import ChildObservation
@@ -87,6 +93,8 @@ class CpsSequence:
             with zero covariance (the world is the parent's first levelled frame).
         solver: ``"wls"`` (any number >= 2 of children) or ``"closed_form"`` (exactly two).
         min_baseline, max_yaw_std: passed to the solver (see :mod:`.checks`).
+        false_alarm_rate: passed to the solver: probability that consistent data raise
+            :class:`InconsistentChildrenError` at a parent step; None switches it off.
     """
 
     def __init__(
@@ -97,6 +105,7 @@ class CpsSequence:
         solver: str = "wls",
         min_baseline: float = DEFAULT_MIN_BASELINE,
         max_yaw_std: float = DEFAULT_MAX_YAW_STD,
+        false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
     ) -> None:
         names = tuple(children)
         if len(names) < 2:
@@ -111,6 +120,7 @@ class CpsSequence:
         self._solver = solver
         self._min_baseline = min_baseline
         self._max_yaw_std = max_yaw_std
+        self._false_alarm_rate = check_false_alarm_rate(false_alarm_rate)
         n = 4 + 3 * len(names)
         self._x = np.full(n, np.nan)
         self._x[:4] = pose.vector
@@ -191,7 +201,12 @@ class CpsSequence:
     def parent_moved(
         self, observations: Sequence[ChildObservation], timestamp: float | None = None
     ) -> CpsStep:
-        """The parent moved and measured two or more stationary children; solve its pose."""
+        """The parent moved and measured two or more stationary children; solve its pose.
+
+        Raises:
+            InconsistentChildrenError: the children do not fit their world positions (see
+                the module text); nothing is recorded and the state is unchanged.
+        """
         obs = self._check_observations(observations, minimum=2)
         ks = [self._index[o.child] for o in obs]
         unknown = [o.child for o, k in zip(obs, ks, strict=True) if not self._known[k]]
@@ -210,6 +225,7 @@ class CpsSequence:
             "timestamp": stamp,
             "min_baseline": self._min_baseline,
             "max_yaw_std": self._max_yaw_std,
+            "false_alarm_rate": self._false_alarm_rate,
         }
         if self._solver == "wls":
             solution = solve_wls(world, level, cov_w, cov_m, **kwargs)

@@ -11,16 +11,32 @@ parent's earlier pose) plus the new measurement noise. Gauss-Newton minimises
 ``r^T S^-1 r`` from a 2D Procrustes start; the result is the best linear unbiased estimate
 to first order, with covariance ``(J^T S^-1 J)^-1``. For two noise-free children it equals
 the paper's closed form.
+
+Consistency: the minimum ``chi2 = r^T S^-1 r`` follows a chi-square law with ``3N - 4``
+degrees of freedom for consistent data. Above its quantile at ``false_alarm_rate``
+(:mod:`twin.instruments.consistency`) :class:`InconsistentChildrenError` is raised: a child
+moved between the two measurements, or a wrong prism was locked. Gauss-Newton that stops
+at ``max_iterations`` before its step tolerance raises :class:`ConvergenceWarning` and
+marks the solution ``converged=False``.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from twin.instruments.consistency import (
+    DEFAULT_FALSE_ALARM_RATE,
+    check_false_alarm_rate,
+    raise_if_inconsistent,
+)
+from twin.instruments.errors import InconsistentChildrenError
 from twin.localization.checks import (
     DEFAULT_MAX_YAW_STD,
     DEFAULT_MIN_BASELINE,
+    ConvergenceWarning,
     check_covariance,
     check_cps_input,
     check_measurement_covariances,
@@ -81,6 +97,7 @@ def solve_wls(
     tolerance: float = 1e-13,
     min_baseline: float = DEFAULT_MIN_BASELINE,
     max_yaw_std: float = DEFAULT_MAX_YAW_STD,
+    false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
 ) -> CpsSolution:
     """Solve the parent's pose from N >= 2 children by generalised least squares.
 
@@ -94,16 +111,27 @@ def solve_wls(
         min_baseline: smallest accepted horizontal baseline, m.
         max_yaw_std: predicted yaw std, rad, above which :class:`PoorGeometryWarning` is
             raised.
+        false_alarm_rate: probability that consistent data raise
+            :class:`InconsistentChildrenError`; None switches the test off.
 
     Returns:
         The solution, with covariance, Jacobians and the chi-square of the residuals
-        (expected value 3N - 4 when the covariances are right; a large value means a wrong
-        prism, a child that moved, or a bad covariance).
+        (expected value 3N - 4 when the covariances are right).
 
     Raises:
-        ValueError: fewer than two children, NaN, horizontal coincidence, or a residual
-            covariance that is not positive definite.
+        InconsistentChildrenError: chi2 above its quantile (a wrong prism, a child that
+            moved, or a bad covariance); ``details`` hold ``chi2``, ``dof``, ``threshold``
+            and the rejected ``solution``.
+        ValueError: fewer than two children, NaN, horizontal coincidence, a covariance
+            that is not symmetric positive semidefinite, or a residual covariance that is
+            not positive definite.
+
+    Warns:
+        ConvergenceWarning: Gauss-Newton reached ``max_iterations`` before ``tolerance``.
     """
+    rate = check_false_alarm_rate(false_alarm_rate)
+    if max_iterations < 1:
+        raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
     w, m, baseline = check_cps_input(children_world, children_level, min_baseline)
     n = w.shape[0]
     cw = check_covariance(cov_children_world, 3 * n, "cov_children_world")
@@ -111,14 +139,23 @@ def solve_wls(
 
     yaw = procrustes_yaw(w, m)
     t = np.mean(w - m @ rot_z(yaw).T, axis=0)
-    iterations = 0
+    iterations, converged, step_norm = 0, False, np.inf
     for iterations in range(1, max_iterations + 1):  # noqa: B007
         r, jac, _, wj, _ = _residual_system(yaw, t, w, m, cw, cm)
         step = -np.linalg.solve(jac.T @ wj, wj.T @ r)
         yaw = float(wrap_angle(yaw + step[0]))
         t = t + step[1:]
-        if np.linalg.norm(step) < tolerance:
+        step_norm = float(np.linalg.norm(step))
+        if step_norm < tolerance:
+            converged = True
             break
+    if not converged:
+        warnings.warn(
+            f"WLS did not converge in {max_iterations} Gauss-Newton iterations: last step "
+            f"{step_norm:.3g} (rad and m) above the tolerance {tolerance:g}",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
 
     r, jac, s, wj, big_r = _residual_system(yaw, t, w, m, cw, cm)
     gain = np.linalg.solve(jac.T @ wj, wj.T)  # (4, 3N) = (J^T S^-1 J)^-1 J^T S^-1
@@ -134,6 +171,16 @@ def solve_wls(
         chi2=float(r @ np.linalg.solve(s, r)),
         dof=3 * n - 4,
         iterations=iterations,
+        converged=converged,
+    )
+    assert solution.chi2 is not None
+    raise_if_inconsistent(
+        solution.chi2,
+        solution.dof,
+        rate,
+        InconsistentChildrenError,
+        f"the {n} children do not fit their world positions (a child moved or a wrong prism)",
+        solution=solution,
     )
     warn_if_poor(solution, max_yaw_std)
     return solution

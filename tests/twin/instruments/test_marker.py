@@ -6,8 +6,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from twin.instruments.consistency import chi2_threshold
 from twin.instruments.marker import MarkerAssembly
-from twin.instruments.marker_pose import cube_centroid, fit_marker_pose, led_positions
+from twin.instruments.marker_pose import (
+    cube_centroid,
+    fit_marker_pose,
+    led_positions,
+    marker_consistency_chi2,
+)
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import cartesian_to_polar, polar_to_cartesian
 from twin.instruments.shot import measure_points
@@ -92,6 +98,32 @@ def test_mislabelled_cubes_show_in_the_residual(order):
     # as a centimetre residual, not millimetres).
     cubes = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
     assert fit_marker_pose(cubes[list(order)], MARKER).rms_residual > 0.008
+
+
+def test_fit_chi2_follows_chi_square_3_and_matches_the_side_lengths():
+    # Cubes measured from a tilted instrument with the Table I noise, 6-14 m away.
+    spec, incl = TotalStationSpec(), InclinometerSpec()
+    rng = np.random.default_rng(11)
+    n = 400
+    offsets = np.stack([rng.uniform(6, 14, n), rng.uniform(-3, 3, n), np.full(n, -0.75)], -1)
+    cubes = MARKER.cubes_body[None] + offsets[:, None, :]
+    polar, _ = measure_points(cubes, 30e-6, -20e-6, spec, incl, rng)
+    measured = polar_to_cartesian(polar)
+    cov = cartesian_covariance(polar, spec, incl)
+    fit = np.array([fit_marker_pose(m, MARKER, c).chi2 for m, c in zip(measured, cov, strict=True)])
+    sides = marker_consistency_chi2(measured, cov, MARKER)
+    # equal to first order; they differ at second order (2 mm range noise on a 0.3 m
+    # triangle: about 1 %, i.e. a few % of chi2)
+    np.testing.assert_allclose(sides, fit, rtol=0.1, atol=0.05)
+    assert fit.mean() == pytest.approx(3.0, abs=0.4)  # chi-square, 3 dof: SE 0.12
+    assert np.all(fit < chi2_threshold(3, 1e-4))
+    # a wrong cube (cube 1 locked for the shot at cube 0) is far beyond the threshold
+    wrong = measured[0][[1, 1, 2]]
+    wrong_cov = cov[0][[1, 1, 2]]
+    assert fit_marker_pose(wrong, MARKER, wrong_cov).chi2 > 1e3 * chi2_threshold(3, 1e-4)
+    assert marker_consistency_chi2(wrong, wrong_cov, MARKER) > 1e3 * chi2_threshold(3, 1e-4)
+    # no covariance: no chi2
+    assert fit_marker_pose(measured[0], MARKER).chi2 is None
 
 
 def test_pose_bad_input():

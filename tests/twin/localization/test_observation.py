@@ -24,12 +24,13 @@ def test_noise_free_observation_is_the_cube_centroid():
     cubes = MARKER.cubes_body + np.array([6.0, 2.0, -0.75])
     exact = TotalStationSpec.noiseless()
     rng = np.random.default_rng(0)
+    exact_incl = InclinometerSpec(sigma=0.0)
     shots = [
-        simulate_shot(cubes, c, exact, rng, inclinometer=InclinometerSpec(sigma=0.0), timestamp=t)
+        simulate_shot(cubes, c, exact, rng, inclinometer=exact_incl, timestamp=t)
         for t, c in enumerate(cubes)
     ]
     assert [s.prism_index for s in shots] == [0, 1, 2]
-    obs = observe_child("c1", [s.measurement for s in shots], exact)
+    obs = observe_child("c1", [s.measurement for s in shots], exact, exact_incl)
     np.testing.assert_allclose(obs.point_level, cubes.mean(axis=0), atol=1e-12)
     assert obs.timestamp == 2.0
     assert len(obs.shots) == 3
