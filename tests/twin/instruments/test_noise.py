@@ -24,6 +24,12 @@ def on_grid(values, resolution):
     return np.all(np.abs(k - np.round(k)) < 1e-6)
 
 
+def smallest_gap(values):
+    """Smallest nonzero difference between the sorted unique values."""
+    gaps = np.diff(np.unique(values))
+    return gaps[gaps > 0].min()
+
+
 def test_spec_defaults_are_table_one():
     assert SPEC.distance_sigma(10.0) == pytest.approx(2.02e-3)
     assert SPEC.distance_sigma(1000.0) == pytest.approx(4.0e-3)
@@ -58,6 +64,11 @@ def test_simulated_shots_have_the_specified_spread_and_grid(distance):
     assert on_grid(measured[:, 2], ARCSEC)
     # ... and the grid is really used, not finer values that happen to round.
     assert len(np.unique(np.round(measured[:, 0] / 0.2e-3))) > 20
+    # ... and it is not a coarser grid (0.4 mm or 3" values are also multiples of 0.2 mm
+    # and 1"): neighbouring reported values are exactly one resolution step apart.
+    assert smallest_gap(measured[:, 0]) == pytest.approx(0.2e-3, rel=1e-6)
+    assert smallest_gap(measured[:, 1]) == pytest.approx(ARCSEC, rel=1e-6)
+    assert smallest_gap(measured[:, 2]) == pytest.approx(ARCSEC, rel=1e-6)
 
 
 def test_quantise_rounds_to_nearest_grid_point():
