@@ -13,6 +13,13 @@ Candidates are filtered in this order, and the failure names the stage that left
    may lock onto another visible prism in the cone);
 3. the closest remaining prism in angle is locked; if its slope distance is outside
    [range_min, range_max] the shot fails with :class:`OutOfRangeError`.
+
+Out-of-range prisms compete for the lock like any other: the instrument locks onto the
+return closest to its pointing direction before it measures a distance, so it cannot pass
+over a prism for being too near or too far. A too-near or too-far prism that is closer in
+angle than the wanted one therefore fails the shot with :class:`OutOfRangeError` (naming
+the locked prism) rather than letting the aim fall back to another prism: the caller
+learns why, and no shot silently lands on a prism it did not choose.
 """
 
 from __future__ import annotations

@@ -103,6 +103,19 @@ def test_out_of_range(distance):
     assert isinstance(info.value, InstrumentError)
 
 
+def test_an_out_of_range_prism_closer_in_angle_fails_the_shot():
+    # A prism 1.0 m away (below the 1.3 m minimum) lies 0.5 deg from the pointing
+    # direction, the wanted prism 10 m away 1 deg: the near one takes the lock and the shot
+    # fails; the aim does not fall back to the measurable prism.
+    near = 1.0 * np.array([np.cos(np.radians(0.5)), np.sin(np.radians(0.5)), 0.0])
+    wanted = 10.0 * np.array([np.cos(np.radians(-1.0)), np.sin(np.radians(-1.0)), 0.0])
+    with pytest.raises(OutOfRangeError) as info:
+        auto_aim(np.array([near, wanted]), [1.0, 0.0, 0.0], SPEC)
+    assert info.value.details["prism_index"] == 0
+    # pointed closer to the wanted prism, it locks it
+    assert auto_aim(np.array([near, wanted]), wanted, SPEC) == 1
+
+
 def test_bad_input():
     with pytest.raises(ValueError, match="pointing"):
         auto_aim([[10.0, 0, 0]], [0.0, 0.0, 0.0], SPEC)

@@ -75,3 +75,19 @@ def test_tilt_covariance_matches_perturbation():
     predicted = tilt_covariance(point, spec)
     assert np.linalg.matrix_rank(predicted, tol=1e-12) == 2
     np.testing.assert_allclose(sample, predicted, atol=0.05 * np.max(predicted))
+
+
+@pytest.mark.parametrize(
+    ("tilt_arcsec", "accepted"), [(179.9, True), (-179.9, True), (180.1, False), (-180.1, False)]
+)
+def test_working_range_edge(tilt_arcsec, accepted):
+    # An exact sensor, just inside and just outside the 180" (3') working range, each axis.
+    spec = InclinometerSpec(sigma=0.0)
+    rng = np.random.default_rng(0)
+    for roll, pitch in ((tilt_arcsec, 0.0), (0.0, tilt_arcsec)):
+        if accepted:
+            reading = read_inclinometer(roll * ARCSEC, pitch * ARCSEC, spec, rng)
+            assert (reading.roll, reading.pitch) == (roll * ARCSEC, pitch * ARCSEC)
+        else:
+            with pytest.raises(TiltOutOfRangeError):
+                read_inclinometer(roll * ARCSEC, pitch * ARCSEC, spec, rng)

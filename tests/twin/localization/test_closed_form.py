@@ -103,3 +103,17 @@ def test_bad_input():
         solve_closed_form(w, stacked)
     with pytest.raises(ValueError, match="shape"):
         solve_closed_form(w, w, np.eye(3))
+
+
+def test_covariances_must_be_positive_semidefinite():
+    w = np.array([[10.0, 0.0, 0.0], [12.0, 1.0, 0.0]])
+    with pytest.raises(ValueError, match="cov_children_world is not positive semidefinite"):
+        solve_closed_form(w, w, -np.eye(6))
+    neg = iso_cov(2, 1e-3)
+    neg[1, 2, 2] = -1e-6
+    with pytest.raises(ValueError, match="cov_measurements is not positive semidefinite"):
+        solve_closed_form(w, w, np.eye(6) * 1e-6, neg)
+    # a semidefinite (singular) covariance is fine: one exactly known child
+    cov = np.zeros((6, 6))
+    cov[3:, 3:] = np.eye(3) * 1e-6
+    assert solve_closed_form(w, w, cov).yaw_std > 0

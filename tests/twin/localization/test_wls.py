@@ -9,8 +9,9 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from tests.twin.localization.helpers import iso_cov, measure_from
-from twin.localization.checks import PoorGeometryWarning
+from twin.localization.checks import ConvergenceWarning, PoorGeometryWarning
 from twin.localization.closed_form import solve_closed_form
+from twin.localization.pose import ParentPose
 from twin.localization.wls import solve_wls
 
 coords = st.floats(-50.0, 50.0)
@@ -118,3 +119,40 @@ def test_bad_input():
         solve_wls(w, w, cw, np.eye(3))
     with pytest.raises(ValueError, match="symmetric"):
         solve_wls(w, w, np.triu(np.ones((6, 6))), cm)
+
+
+def test_children_on_one_vertical_line_leave_the_yaw_unobservable():
+    w = np.array([[10.0, 0.0, 0.0], [12.0, 1.0, 0.0]])
+    stacked = np.array([[10.0, 0.0, 0.0], [10.0, 0.0, 1.0]])
+    with pytest.raises(ValueError, match="yaw is unobservable"):
+        solve_wls(w, stacked, np.eye(6) * 1e-6, iso_cov(2, 1e-3))
+    with pytest.raises(ValueError, match="yaw is unobservable"):
+        solve_wls(stacked, w, np.eye(6) * 1e-6, iso_cov(2, 1e-3))
+
+
+def test_covariances_must_be_positive_semidefinite():
+    w = np.array([[10.0, 0.0, 0.0], [12.0, 1.0, 0.0]])
+    with pytest.raises(ValueError, match="cov_children_world is not positive semidefinite"):
+        solve_wls(w, w, -np.eye(6), iso_cov(2, 1e-3))
+    with pytest.raises(ValueError, match="cov_measurements is not positive semidefinite"):
+        solve_wls(w, w, np.eye(6) * 1e-6, -iso_cov(2, 1e-3))
+    with pytest.raises(ValueError, match="parent pose's covariance"):
+        ParentPose(0.0, np.zeros(3), -np.eye(4))
+
+
+def test_stopping_at_the_iteration_limit_is_reported():
+    rng = np.random.default_rng(4)
+    world = np.array([[10.0, 2.0, 0.5], [14.0, -3.0, 0.5], [6.0, -5.0, 0.5]])
+    sig = np.array([1e-3, 1e-3, 3e-2])
+    cov_m = np.array([np.eye(3) * s**2 for s in sig])
+    level = measure_from(0.1, np.zeros(3), world) + rng.normal(size=(3, 3)) * sig[:, None]
+    with pytest.warns(ConvergenceWarning, match="did not converge in 1 Gauss-Newton"):
+        sol = solve_wls(world, level, np.eye(9) * 1e-8, cov_m, max_iterations=1)
+    assert not sol.converged
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sol = solve_wls(world, level, np.eye(9) * 1e-8, cov_m)
+    assert sol.converged
+    assert sol.iterations < 20
+    with pytest.raises(ValueError, match="max_iterations"):
+        solve_wls(world, level, np.eye(9) * 1e-8, cov_m, max_iterations=0)
