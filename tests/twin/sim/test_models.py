@@ -9,22 +9,9 @@ import pytest
 from twin.instruments.marker import MarkerAssembly
 from twin.scenario.robots import INSTRUMENT_HEIGHT, MODELS_DIR, PIONEER3AT, PIONEER3DX
 
+from .helpers import unnamed
+
 DEVICES = ["pioneer3at", "pioneer3dx"]
-
-
-def _unnamed(model: mujoco.MjModel) -> list[str]:
-    out = []
-    for kind, count, first in (
-        (mujoco.mjtObj.mjOBJ_BODY, model.nbody, 1),
-        (mujoco.mjtObj.mjOBJ_SITE, model.nsite, 0),
-        (mujoco.mjtObj.mjOBJ_CAMERA, model.ncam, 0),
-        (mujoco.mjtObj.mjOBJ_JOINT, model.njnt, 0),
-        (mujoco.mjtObj.mjOBJ_ACTUATOR, model.nu, 0),
-    ):
-        out += [
-            f"{kind.name} {i}" for i in range(first, count) if not mujoco.mj_id2name(model, kind, i)
-        ]
-    return out
 
 
 @pytest.mark.parametrize("device", DEVICES)
@@ -37,7 +24,7 @@ def test_device_scene_loads_and_steps_without_warnings(device):
         if z0 is None:
             z0 = data.qpos[2]
     assert [w.number for w in data.warning] == [0] * len(data.warning)
-    assert not _unnamed(model)
+    assert not unnamed(model)
     # Resting on its wheels, level and still.
     assert abs(data.qpos[2]) < 2e-3
     assert np.linalg.norm(data.qvel[:6]) < 1e-3

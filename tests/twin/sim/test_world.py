@@ -9,7 +9,7 @@ import pytest
 from twin.scenario import scenario_from_dict
 from twin.sim.scene import build_world
 
-from .helpers import SCENARIOS, scenario
+from .helpers import SCENARIOS, scenario, unnamed
 
 ALL = sorted(p.stem for p in SCENARIOS.glob("*.toml"))
 
@@ -25,14 +25,7 @@ def test_scenario_builds_and_steps_one_second_without_warnings(name):
     assert world.time == pytest.approx(1.0)
     assert world.warnings() == {}
     m = world.model
-    for kind, count, first in (
-        (mujoco.mjtObj.mjOBJ_BODY, m.nbody, 1),
-        (mujoco.mjtObj.mjOBJ_SITE, m.nsite, 0),
-        (mujoco.mjtObj.mjOBJ_CAMERA, m.ncam, 0),
-        (mujoco.mjtObj.mjOBJ_GEOM, m.ngeom, 0),
-        (mujoco.mjtObj.mjOBJ_LIGHT, m.nlight, 0),
-    ):
-        assert all(_names(m, kind, count, first)), f"unnamed {kind.name}"
+    assert not unnamed(m)
     # Robots at rest on the floor, not colliding.
     assert world.collisions == []
     for robot in world.scenario.robots.all:
