@@ -2,11 +2,18 @@
 
 Default geometry (body frame: origin on the floor below the robot's centre, x forward,
 z up; metres): three corner cubes on a horizontal triangle with sides 0.29, 0.33 and
-0.34 m at 1.40 m on top of the mast, and four LEDs on the mast's axis between 0.35 m and
-1.25 m, so the LEDs span 0.9 m in height. The cube triangle fits on a Pioneer 3-DX
-(0.44 x 0.38 m), is far from collinear (a well-conditioned pose), and its centroid lies on
-the LED axis, so an error in the assembly's heading does not move the LEDs; the pose error
-that does reach the LEDs is the tilt of the triangle times the lever arm down the mast.
+0.34 m at 1.40 m on top of the mast, and four LEDs on short stubs 3.5 cm in front of the
+mast between 0.35 m and 1.25 m, so the LEDs span 0.9 m in height on one vertical line. The
+cube triangle fits on a Pioneer 3-DX (0.44 x 0.38 m), is far from collinear (a
+well-conditioned pose), and its centroid lies on the mast's axis, so an error in the
+assembly's heading moves the LEDs only by their 3.5 cm lever arm; the pose error that does
+reach the LEDs is the tilt of the triangle times the lever arm down the mast.
+
+The LEDs stand in front of the mast so that a camera facing the robot's front sees each
+one whole: an LED threaded on the mast's axis has the mast rising out of its top, and a
+camera looking down (all of them do) sees the mast cover the LED's upper edge, which moves
+the centroid of its image down by 0.2-0.6 px at 3-5 m. Seen from behind, the mast can hide
+the LEDs: the child turns its front to the camera it is working for.
 
 The triangle is deliberately scalene (sides differing by 1-5 cm): with an isosceles
 triangle two cubes can be swapped by a rigid motion, so a wrong prism lock would fit with
@@ -28,8 +35,10 @@ def _default_cubes() -> NDArray[np.float64]:
 
 
 def _default_leds() -> NDArray[np.float64]:
-    # Four LEDs on the mast at different heights above the floor, body frame, m.
-    return np.array([[0.0, 0.0, 0.35], [0.0, 0.0, 0.65], [0.0, 0.0, 0.95], [0.0, 0.0, 1.25]])
+    # Four LEDs in front of the mast at different heights above the floor, body frame, m.
+    return np.array(
+        [[0.035, 0.0, 0.35], [0.035, 0.0, 0.65], [0.035, 0.0, 0.95], [0.035, 0.0, 1.25]]
+    )
 
 
 @dataclass(frozen=True, eq=False)

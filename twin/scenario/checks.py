@@ -11,6 +11,8 @@
 - every camera, robot start, floor patch and calibration station lies inside the space and
   outside the obstacles;
 - the route stays inside the walls and clear of the obstacles by the parent's radius;
+- people's paths stay inside the walls (they may cross obstacles' footprints: a person
+  can walk past a low structure), and their names differ from the robots';
 - every calibration visit names a camera, and from its station the total station sees at
   least ``calibration.min_visible_fraction`` of the camera's view of the floor (line of
   sight to the corner cubes of a child standing there, within the instrument's range).
@@ -62,6 +64,7 @@ def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
     issues += _check_patches(sc)
     issues += _check_route(sc)
     issues += _check_visits(sc)
+    issues += _check_people(sc)
     return issues
 
 
@@ -96,7 +99,11 @@ def _check_names(sc: Scenario) -> list[ScenarioIssue]:
     ]
     groups = [
         ("camera", [(f"cameras[{i}].name", c.name) for i, c in enumerate(sc.cameras)]),
-        ("robot", list(zip(robot_keys, [r.name for r in sc.robots.all], strict=True))),
+        (
+            "robot and person",
+            list(zip(robot_keys, [r.name for r in sc.robots.all], strict=True))
+            + [(f"people[{i}].name", p.name) for i, p in enumerate(sc.people)],
+        ),
         (
             "obstacle and floor patch",
             [(f"space.obstacles[{i}].name", o.name) for i, o in enumerate(sc.space.obstacles)]
@@ -390,6 +397,30 @@ def _check_visits(sc: Scenario) -> list[ScenarioIssue]:
                     list(visit.station),
                     f"a station that sees at least {100 * need:.0f} % of it "
                     "(calibration.min_visible_fraction)",
+                )
+            )
+    return issues
+
+
+# Clearance kept between a walking person's path and the walls, m.
+PERSON_CLEARANCE = 0.25
+
+
+def _check_people(sc: Scenario) -> list[ScenarioIssue]:
+    issues = []
+    for i, person in enumerate(sc.people):
+        pts, seg = polyline_points(person.waypoints, spacing=0.05)
+        bad = ~inside_space(sc.space, pts, PERSON_CLEARANCE)
+        if bad.any():
+            k = int(np.argmax(bad))
+            j = int(seg[k])
+            issues.append(
+                ScenarioIssue(
+                    f"people[{i}].waypoints[{j}]",
+                    f"person {person.name!r} walks through a wall or closer than "
+                    f"{PERSON_CLEARANCE:.2f} m to one, near ({pts[k, 0]:.2f}, {pts[k, 1]:.2f})",
+                    [list(person.waypoints[j]), list(person.waypoints[j + 1])],
+                    "a path inside the space",
                 )
             )
     return issues

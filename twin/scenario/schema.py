@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from calib.camera import TsaiCamera
+from calib.opencv_camera import OpenCVCamera
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PLATFORMS, OdometrySpec, Platform
@@ -99,12 +100,18 @@ class Lighting(Frozen):
         ambient: ambient light level of the whole scene (MuJoCo's headlight ambient), 0..1.
         diffuse: diffuse level of each overhead point light, 0..1.
         spacing: distance between overhead lights, m.
+        flicker: relative standard deviation of the light level, drawn afresh for every
+            captured camera frame (0.05: the level varies by about 5 % between frames).
+        drift_per_frame: relative change of the light level from one captured frame to
+            the next (-0.1: a light dimming by 10 % a frame).
     """
 
     shadows: bool = False
     ambient: Annotated[float, Field(ge=0.0, le=1.0)] = 0.4
     diffuse: Annotated[float, Field(ge=0.0, le=1.0)] = 0.6
     spacing: Annotated[float, Field(gt=1.0)] = 15.0
+    flicker: Annotated[float, Field(ge=0.0, le=0.5)] = 0.0
+    drift_per_frame: Annotated[float, Field(ge=-0.5, le=0.5)] = 0.0
 
 
 class Space(Frozen):
@@ -146,6 +153,35 @@ class Space(Frozen):
 
 
 # -- cameras ---------------------------------------------------------------------------------
+class SensorConfig(Frozen):
+    """The image sensor behind a camera's lens; defaults look like a 2007-era 320x240 camera.
+
+    The rendered scene gives each pixel a level in [0, 1] (1: white at full exposure); the
+    sensor turns it into ``exposure * level * full_well_e`` photo-electrons, adds photon
+    (Poisson) noise and read noise, and quantises to ``bits`` with full scale at the full
+    well. The defaults give about 2.4 DN of noise at mid-grey and 0.8 DN in the dark (8 bits).
+
+    Attributes:
+        exposure: exposure relative to the rendered level (2: twice as bright, clipping
+            earlier).
+        full_well_e: electrons at full scale.
+        read_noise_e: read noise, electrons (standard deviation).
+        bits: output bits per channel (8: uint8 images; more: uint16).
+        blur_sigma_px: standard deviation of the lens and sensor blur, px (0: none).
+        supersample: render at this many times the resolution in each direction and
+            integrate each pixel's area (sub-pixel fidelity of small LEDs).
+        noise: False for noise-free images (quantisation is kept).
+    """
+
+    exposure: Annotated[float, Field(gt=0.0, le=20.0)] = 1.0
+    full_well_e: Annotated[float, Field(ge=100.0, le=1.0e6)] = 6000.0
+    read_noise_e: Annotated[float, Field(ge=0.0, le=1000.0)] = 12.0
+    bits: Annotated[int, Field(ge=8, le=16)] = 8
+    blur_sigma_px: Annotated[float, Field(ge=0.0, le=5.0)] = 0.5
+    supersample: Annotated[int, Field(ge=1, le=8)] = 1
+    noise: bool = True
+
+
 class CameraConfig(Frozen):
     """A fixed camera: pose by position and view direction (image upright), Tsai intrinsics.
 
@@ -156,6 +192,9 @@ class CameraConfig(Frozen):
         f: focal length, px. cx, cy: principal point, px (OpenCV: (0, 0) is the centre of
             the top-left pixel). kappa1: radial distortion, 1/px^2 (Tsai). sx: scale factor.
         image_size: (width, height), px.
+        opencv_distortion: OpenCV's distortion coefficients (k1, k2, p1, p2[, k3[, k4, k5,
+            k6]]) to use instead of kappa1 (which must then be 0); fx = sx * f, fy = f.
+        sensor: the image sensor.
     """
 
     name: Name
@@ -167,6 +206,26 @@ class CameraConfig(Frozen):
     kappa1: float = 0.0
     sx: Annotated[float, Field(gt=0.5, lt=2.0)] = 1.0
     image_size: tuple[Annotated[int, Field(ge=8, le=4096)], Annotated[int, Field(ge=8, le=4096)]]
+    opencv_distortion: tuple[float, ...] | None = None
+    sensor: SensorConfig = SensorConfig()
+
+    @field_validator("opencv_distortion")
+    @classmethod
+    def _opencv_length(cls, v: tuple[float, ...] | None) -> tuple[float, ...] | None:
+        if v is not None:
+            if len(v) not in (4, 5, 8):
+                raise ValueError(f"must have 4, 5 or 8 coefficients, got {len(v)}")
+            if not all(math.isfinite(c) for c in v):
+                raise ValueError("coefficients must be finite")
+        return v
+
+    @model_validator(mode="after")
+    def _one_distortion_model(self) -> CameraConfig:
+        if self.opencv_distortion is not None and self.kappa1 != 0.0:
+            raise ValueError(
+                "give either kappa1 (Tsai) or opencv_distortion, not both: set kappa1 = 0"
+            )
+        return self
 
     @field_validator("view_direction")
     @classmethod
@@ -189,6 +248,17 @@ class CameraConfig(Frozen):
             position=self.position,
             view_direction=self.view_direction,
             image_size=self.image_size,
+        )
+
+    def lens(self) -> TsaiCamera | OpenCVCamera:
+        """The camera with the distortion the twin renders: Tsai's kappa1, or OpenCV's
+        coefficients when ``opencv_distortion`` is given (ground truth of the images)."""
+        cam = self.tsai()
+        if self.opencv_distortion is None:
+            return cam
+        k = np.array([[self.sx * self.f, 0.0, self.cx], [0.0, self.f, self.cy], [0, 0, 1.0]])
+        return OpenCVCamera(
+            k, np.asarray(self.opencv_distortion), cam.world2cam_r, cam.world2cam_t, cam.image_size
         )
 
 
@@ -407,6 +477,44 @@ class Calibration(Frozen):
     min_visible_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
 
 
+class Person(Frozen):
+    """A person walking back and forth along a path: a moving distractor for the cameras
+    and an obstacle to lines of sight (robots pass through people: no contacts).
+
+    Attributes:
+        name: identifier (the MuJoCo body name; geoms ``NAME/legs``, ``NAME/torso``...).
+        waypoints: (x, y) points of the path on the floor, m, at least two; the person
+            walks to the last one and back, forever.
+        speed: walking speed, m/s.
+        start_offset: distance along the path at time 0, m.
+        height: m.
+        shirt_rgb: colour of the shirt, each channel 0..1.
+    """
+
+    name: Name
+    waypoints: tuple[Vec2, ...] = Field(min_length=2)
+    speed: Annotated[float, Field(gt=0.0, le=3.0)] = 1.2
+    start_offset: Annotated[float, Field(ge=0.0)] = 0.0
+    height: Annotated[float, Field(ge=1.0, le=2.2)] = 1.75
+    shirt_rgb: tuple[
+        Annotated[float, Field(ge=0.0, le=1.0)],
+        Annotated[float, Field(ge=0.0, le=1.0)],
+        Annotated[float, Field(ge=0.0, le=1.0)],
+    ] = (0.85, 0.85, 0.80)
+
+    @property
+    def path_length(self) -> float:
+        """Length of the path, m."""
+        p = np.asarray(self.waypoints, dtype=float)
+        return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+    @model_validator(mode="after")
+    def _path_has_length(self) -> Person:
+        if self.path_length < 0.1:
+            raise ValueError("the path must be at least 0.1 m long")
+        return self
+
+
 class SimConfig(Frozen):
     """Simulation settings.
 
@@ -425,6 +533,7 @@ class Scenario(Frozen):
         description: free text.
         seed: root seed of every random generator of a run.
         space, cameras, robots, marker, noise, route, calibration, sim: the sections.
+        people: people walking through the space (distractors), none by default.
         source: the file it was loaded from (set by the loader).
     """
 
@@ -439,6 +548,7 @@ class Scenario(Frozen):
     route: Route
     calibration: Calibration
     sim: SimConfig = SimConfig()
+    people: tuple[Person, ...] = ()
     source: str = ""
 
     def camera(self, name: str) -> CameraConfig:

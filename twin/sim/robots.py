@@ -21,6 +21,9 @@ from twin.scenario.schema import RobotConfig
 N_CUBES = 3
 N_LEDS = 4
 
+# How far inside an LED (from its centre towards the mast) its stub ends, m.
+LED_STUB_INSET = 0.005
+
 
 def load_device(platform: Platform) -> mujoco.MjSpec:
     """A fresh spec of the device's MJCF file (``models/<model>/<model>.xml``)."""
@@ -30,7 +33,8 @@ def load_device(platform: Platform) -> mujoco.MjSpec:
 def set_marker_geometry(spec: mujoco.MjSpec, marker: MarkerAssembly) -> None:
     """Move a pioneer3dx spec's cube and LED sites and geoms to ``marker``'s geometry.
 
-    The mast is stretched to the highest point, and the cube arms follow the cubes.
+    The mast is stretched to the highest point, and the cube arms and LED stubs follow
+    the cubes and LEDs.
     """
     cubes = np.asarray(marker.cubes_body, dtype=float).reshape(N_CUBES, 3)
     leds = np.asarray(marker.leds_body, dtype=float).reshape(N_LEDS, 3)
@@ -42,6 +46,14 @@ def set_marker_geometry(spec: mujoco.MjSpec, marker: MarkerAssembly) -> None:
     for k, p in enumerate(leds):
         spec.site(f"led{k}").pos = p.tolist()
         spec.geom(f"led{k}").pos = p.tolist()
+        # The stub runs from the mast's axis to just inside the LED; an LED on the axis
+        # keeps a short stub hidden inside it.
+        reach = float(np.hypot(p[0], p[1]))
+        if reach > LED_STUB_INSET:
+            end = p[:2] * (1.0 - LED_STUB_INSET / reach)
+            spec.geom(f"stub{k}").fromto = [0.0, 0.0, p[2], end[0], end[1], p[2]]
+        else:
+            spec.geom(f"stub{k}").fromto = [p[0], p[1], p[2] - 0.01, p[0], p[1], p[2]]
     top = float(max(cubes[:, 2].max(), leds[:, 2].max()))
     spec.geom("mast").fromto = [0.0, 0.0, 0.22, 0.0, 0.0, top]
 

@@ -17,19 +17,22 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
+from calib.opencv_camera import OpenCVCamera
 from twin.scenario.schema import Scenario
 from twin.sim.camera import add_camera, tsai_from_model
 from twin.sim.drive import DriveController, DriveTolerance
 from twin.sim.hall import SPACE_GROUP, build_space
 from twin.sim.odometry import WheelOdometry
+from twin.sim.people import add_person, move_people
 from twin.sim.robots import N_CUBES, N_LEDS, RobotHandle, attach_robot
 
 # Stream of numpy.random.SeedSequence reserved for odometry errors.
 ODOMETRY_STREAM = 1
 
-# LED appearance when lit (the "off" state is the material in the MJCF file).
-LED_ON_RGBA = (1.0, 0.25, 0.15, 1.0)
-LED_ON_EMISSION = 1.0
+# LED appearance when lit (the "off" state is the material in the MJCF file): bright
+# enough to saturate every channel, so a lit LED is a uniform disc without shading.
+LED_ON_RGBA = (1.0, 0.35, 0.25, 1.0)
+LED_ON_EMISSION = 5.0
 
 # A robot touching the same geom again within this many control periods of their last
 # contact is the same collision (contacts flicker while a robot pushes against something).
@@ -62,6 +65,8 @@ def build_spec(scenario: Scenario) -> mujoco.MjSpec:
         attach_robot(spec, robot, scenario.space.floor_z, marker)
     for cam in scenario.cameras:
         add_camera(spec.worldbody, cam.name, cam.tsai())
+    for person in scenario.people:
+        add_person(spec, person, scenario.space.floor_z)
     return spec
 
 
@@ -144,6 +149,13 @@ class World:
                     self.model.mat_rgba[mid].copy(),
                     float(self.model.mat_emission[mid]),
                 )
+        # The lights at level 1: each light's diffuse and specular, the headlight's.
+        self._light_base = (
+            self.model.light_diffuse.copy(),
+            self.model.light_specular.copy(),
+            np.array(self.model.vis.headlight.ambient, dtype=float),
+            np.array(self.model.vis.headlight.diffuse, dtype=float),
+        )
         self.reset()
 
     # -- state -------------------------------------------------------------------------------
@@ -175,6 +187,57 @@ class World:
         for mid, (rgba, emission) in self._led_off.items():
             self.model.mat_rgba[mid] = rgba
             self.model.mat_emission[mid] = emission
+        self.set_light_level(1.0)
+        self._move_people()
+
+    def _move_people(self) -> None:
+        if self.scenario.people:
+            move_people(self.model, self.data, self.scenario.people, self.scenario.space.floor_z)
+            mujoco.mj_kinematics(self.model, self.data)
+
+    def place(self, robot: str, xy: ArrayLike, yaw: float = 0.0, settle: float = 0.1) -> None:
+        """Put a robot at a pose on the floor at once (no driving), at rest.
+
+        Odometry is reset to the new pose, a running drive is cancelled, and the world is
+        stepped ``settle`` seconds so the robot rests on its wheels.
+
+        Args:
+            robot: the robot's name.
+            xy: (2,) position of the body origin, m.
+            yaw: heading, rad.
+            settle: simulated seconds to step afterwards (0: none).
+        """
+        h = self.robots[robot]
+        p = np.asarray(xy, dtype=float).reshape(2)
+        self.stop(robot)
+        q = self.data.qpos
+        q[h.qpos : h.qpos + 2] = p
+        q[h.qpos + 2] = self.model.qpos0[h.qpos + 2]
+        q[h.qpos + 3 : h.qpos + 7] = [np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)]
+        self.data.qvel[h.qvel : h.qvel + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        if settle > 0:
+            self.run(settle)
+        self.odometry[robot].reset(h.pose(self.data))
+        self._wheels[robot] = h.wheel_angles(self.data)
+
+    # -- lights ------------------------------------------------------------------------------
+    @property
+    def light_level(self) -> float:
+        """Level of all lights relative to the scenario's, 1 at the start."""
+        return self._light_level
+
+    def set_light_level(self, level: float) -> None:
+        """Scale every light (the overhead lights and the headlight's ambient and diffuse
+        parts) to ``level`` times the scenario's: a flickering or dimming light."""
+        if not (np.isfinite(level) and level >= 0.0):
+            raise ValueError(f"the light level must be finite and >= 0, got {level}")
+        diffuse, specular, ambient, head = self._light_base
+        self.model.light_diffuse[:] = level * diffuse
+        self.model.light_specular[:] = level * specular
+        self.model.vis.headlight.ambient[:] = level * ambient
+        self.model.vis.headlight.diffuse[:] = level * head
+        self._light_level = float(level)
 
     @property
     def time(self) -> float:
@@ -199,6 +262,10 @@ class World:
             self._tick += 1
             self._control()
             self._apply_commands()
+            if self.scenario.people:
+                move_people(
+                    self.model, self.data, self.scenario.people, self.scenario.space.floor_z
+                )
             mujoco.mj_step(self.model, self.data, nstep=self.substeps)
             self._update_odometry()
             new += self._detect_collisions()
@@ -454,10 +521,19 @@ class World:
         """Names of the fixed cameras, in scenario order."""
         return [c.name for c in self.scenario.cameras]
 
-    def camera(self, name: str) -> TsaiCamera:
+    def camera(self, name: str) -> TsaiCamera | OpenCVCamera:
         """A fixed camera read back from the model (pose in W, OpenCV pixels), with the
-        scenario's kappa1 (which MuJoCo does not render)."""
-        return tsai_from_model(self.model, self.data, name, self.scenario.camera(name).kappa1)
+        scenario's lens distortion (which MuJoCo does not render; :mod:`twin.sim.capture`
+        applies it): a :class:`TsaiCamera` with kappa1, or an :class:`OpenCVCamera` when
+        the scenario gives OpenCV coefficients. The ground truth of the camera's images."""
+        cfg = self.scenario.camera(name)
+        cam = tsai_from_model(self.model, self.data, name, cfg.kappa1)
+        if cfg.opencv_distortion is None:
+            return cam
+        k = np.array([[cam.sx * cam.f, 0.0, cam.cx], [0.0, cam.f, cam.cy], [0.0, 0.0, 1.0]])
+        return OpenCVCamera(
+            k, np.asarray(cfg.opencv_distortion), cam.world2cam_r, cam.world2cam_t, cam.image_size
+        )
 
     def ray(
         self, origin: ArrayLike, direction: ArrayLike, exclude_robot: str | None = None
