@@ -2,9 +2,20 @@
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
-export MUJOCO_GL ?= egl
 
-.PHONY: run test lint format bench clean
+.PHONY: run test lint format bench clean gl-libs
+
+# Headless rendering needs Mesa's EGL (or OSMesa). When neither library is installed they
+# are installed with apt-get where that is possible (as root), else the command is shown.
+gl-libs:
+	@if ! ldconfig -p 2>/dev/null | grep -q -E 'libEGL\.so\.1|libOSMesa\.so'; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing Mesa's EGL for headless rendering"; \
+	    apt-get update -qq && apt-get install -y -qq libegl1 libgl1-mesa-dri >/dev/null; \
+	  else \
+	    echo "warning: rendering needs Mesa's EGL: sudo apt-get install libegl1 libgl1-mesa-dri"; \
+	  fi; \
+	fi
 
 $(VENV)/.stamp-run: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,12 +29,12 @@ $(VENV)/.stamp-dev: pyproject.toml
 	$(PY) -m pip install --quiet -e ".[dev]"
 	touch $(VENV)/.stamp-run $@
 
-run: $(VENV)/.stamp-run
+run: $(VENV)/.stamp-run gl-libs
 	$(VENV)/bin/twin calibrate examples/camera1_points.csv --image-size 320 240 \
 	    --units mm --pixel-size 0.015 \
 	    --out out/camera1.json --json out/camera1_result.json
 
-test: $(VENV)/.stamp-dev
+test: $(VENV)/.stamp-dev gl-libs
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -n 2 -q

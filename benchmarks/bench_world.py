@@ -1,7 +1,7 @@
 """Speed of the MuJoCo world: physics steps per second of the paper's hall with the three
 robots driving, and frames per second of each camera at 320 x 240.
 
-Run: ``MUJOCO_GL=egl .venv/bin/python benchmarks/bench_world.py [--seconds S] [--frames N]``
+Run: ``.venv/bin/python benchmarks/bench_world.py [--seconds S] [--frames N]``
 """
 
 from __future__ import annotations
@@ -12,13 +12,12 @@ import platform
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
-import mujoco
-
 from twin.scenario import load_scenario
 from twin.sim.render import CameraRenderer
 from twin.sim.scene import build_world
+
+# Imported after twin.sim, which chooses the headless OpenGL backend.
+import mujoco  # isort: skip
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 from rich.console import Console
@@ -19,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Render one image from a fixed camera of a scenario, with the robots at their "
             "start poses (after settling for 0.2 s), as a PNG. Rendering is headless "
-            "(MUJOCO_GL=egl unless set)."
+            "(EGL, else OSMesa; MUJOCO_GL overrides)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
@@ -44,7 +43,6 @@ def run(args: argparse.Namespace) -> int:
             soft_wrap=True,
         )
         return 2
-    os.environ.setdefault("MUJOCO_GL", "egl")
     from twin.sim.render import CameraRenderer, save_png
     from twin.sim.scene import build_world
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +45,6 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
-    os.environ.setdefault("MUJOCO_GL", "egl")
     from twin.sim.scene import build_world
 
     world = build_world(sc)

@@ -73,7 +73,8 @@ def add_person(spec: mujoco.MjSpec, person: Person, floor_z: float) -> None:
 
 
 def person_pose(person: Person, time: float) -> tuple[NDArray[np.float64], float]:
-    """Where ``person`` stands at ``time`` (s): (2,) floor position (m) and heading (rad).
+    """Where ``person`` stands at ``time`` (s): (2,) floor position (m) and heading (rad,
+    in (-pi, pi]).
 
     The person starts ``start_offset`` metres along the path and walks to its end and back.
     """
@@ -89,8 +90,8 @@ def person_pose(person: Person, time: float) -> tuple[NDArray[np.float64], float
     i = min(int(np.searchsorted(ends, d)), len(seg) - 1)
     direction = (p[i + 1] - p[i]) / seg[i]
     xy = p[i] + (d - (ends[i] - seg[i])) * direction
-    heading = math.atan2(direction[1], direction[0]) + (0.0 if forward else math.pi)
-    return xy, heading
+    sign = 1.0 if forward else -1.0
+    return xy, math.atan2(sign * direction[1], sign * direction[0])
 
 
 def move_people(

@@ -1,5 +1,4 @@
-"""Headless rendering for every test here: MUJOCO_GL must be set before mujoco is imported."""
+"""Headless rendering for every test here: importing twin.sim chooses the OpenGL backend
+(EGL, else OSMesa) before anything imports mujoco."""
 
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
+import twin.sim  # noqa: F401
