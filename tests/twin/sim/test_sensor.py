@@ -49,7 +49,7 @@ def test_blur_keeps_the_light_and_spreads_it_by_sigma():
     levels = np.zeros((41, 41), dtype=np.float32)
     levels[20, 20] = 255.0
     img = expose(levels, sensor, None).astype(float)
-    v, u = np.mgrid[0:41, 0:41]
+    _, u = np.mgrid[0:41, 0:41]
     total = img.sum()
     assert total == pytest.approx(65535, rel=1e-3)
     var_u = (img * (u - 20) ** 2).sum() / total
