@@ -42,7 +42,7 @@ def stand_for_led(
     z = floor_z + led[2]
     o = camera.position
     # Each row's line of sight reaches height z after (z - o_z) / d_z metres.
-    w, h = camera.image_size
+    h = camera.image_size[1]
     rows = np.linspace(-0.5, h - 0.5, 4 * h + 1)
     _, d = camera.unproject(np.column_stack([np.full_like(rows, u), rows]))
     with np.errstate(divide="ignore", invalid="ignore"):
