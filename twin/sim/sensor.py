@@ -3,10 +3,14 @@
 For each pixel and colour channel, with level L in [0, 1] from the render (after the lens
 and pixel integration of :mod:`twin.sim.lens`):
 
-    electrons = Poisson(exposure * L * full_well_e) + Normal(0, read_noise_e)
+    electrons = exposure * L * full_well_e + Normal(0, sqrt(that + read_noise_e**2))
     DN        = round(electrons / full_well_e * (2**bits - 1)), clipped to [0, 2**bits - 1]
 
-after a Gaussian blur of the levels (lens and sensor blur). The noise in DN at level L is
+after a Gaussian blur of the levels (lens and sensor blur). Photon (Poisson) noise is drawn
+in its Gaussian form, with the Poisson variance: exact in mean and variance, and within a
+fraction of a DN of the Poisson shape down to a few electrons, where the read noise
+dominates anyway; one normal draw in float32 is about six times faster than
+``rng.poisson``. The noise in DN at level L is
 therefore ``sqrt(exposure * L * full_well_e + read_noise_e**2) * gain`` with
 ``gain = (2**bits - 1) / full_well_e``: :func:`noise_dn` gives it, for thresholds and tests.
 """
@@ -59,13 +63,12 @@ def expose(
         lv = cv2.GaussianBlur(
             lv, (0, 0), sigmaX=sensor.blur_sigma_px, borderType=cv2.BORDER_REPLICATE
         )
-    electrons = np.clip(lv, 0.0, None).astype(np.float64) * (sensor.exposure * sensor.full_well_e)
+    electrons = np.clip(lv, 0.0, None) * np.float32(sensor.exposure * sensor.full_well_e)
     if sensor.noise:
         if rng is None:
             raise ValueError("a noisy sensor needs a random generator")
-        electrons = rng.poisson(electrons).astype(np.float64)
-        if sensor.read_noise_e > 0:
-            electrons += rng.normal(0.0, sensor.read_noise_e, size=electrons.shape)
+        sigma = np.sqrt(electrons + np.float32(sensor.read_noise_e**2))
+        electrons = electrons + sigma * rng.standard_normal(electrons.shape, dtype=np.float32)
     top = 2**sensor.bits - 1
-    dn = np.clip(np.rint(electrons * dn_per_electron(sensor)), 0, top)
+    dn = np.clip(np.rint(electrons * np.float32(dn_per_electron(sensor))), 0, top)
     return dn.astype(np.uint8 if sensor.bits == 8 else np.uint16)
