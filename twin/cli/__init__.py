@@ -11,7 +11,7 @@ import importlib
 import sys
 
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
-_COMMANDS = ["calibrate", "scene", "render"]
+_COMMANDS = ["calibrate", "scene", "render", "detect"]
 
 
 def build_parser() -> argparse.ArgumentParser:

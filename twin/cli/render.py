@@ -17,13 +17,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="render one image from a camera of a scenario",
         description=(
             "Render one image from a fixed camera of a scenario, with the robots at their "
-            "start poses (after settling for 0.2 s), as a PNG. Rendering is headless "
-            "(EGL, else OSMesa; MUJOCO_GL overrides)."
+            "start poses (after settling for 0.2 s), as a PNG: through the camera's lens "
+            "(distortion) and sensor (noise, 8 bits) as it would see it, or with --pinhole "
+            "as MuJoCo draws it. Rendering is headless (EGL, else OSMesa; MUJOCO_GL "
+            "overrides)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
     p.add_argument("--camera", required=True, help="camera name, e.g. cam1")
     p.add_argument("--leds", choices=["on", "off"], default="off", help="the children's LEDs")
+    p.add_argument(
+        "--pinhole",
+        action="store_true",
+        help="MuJoCo's pinhole image, without the lens and sensor models",
+    )
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png", help="output image")
     p.set_defaults(func=run)
 
@@ -43,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
             soft_wrap=True,
         )
         return 2
+    import twin.sim  # noqa: F401  (chooses the headless OpenGL backend)
+    from twin.sim.capture import CameraSimulator
     from twin.sim.render import CameraRenderer, save_png
     from twin.sim.scene import build_world
 
@@ -50,9 +59,14 @@ def run(args: argparse.Namespace) -> int:
     world.run(0.2)
     for child in sc.robots.children:
         world.set_leds(child.name, args.leds == "on")
-    with CameraRenderer(world) as renderer:
-        image = renderer.render(args.camera)
+    if args.pinhole:
+        with CameraRenderer(world) as renderer:
+            image = renderer.render(args.camera)
+    else:
+        with CameraSimulator(world) as sim:
+            image = sim.capture(args.camera).image
     path = save_png(image, args.out)
     h, w = image.shape[:2]
-    console.print(f"wrote {path} ({w} x {h} px, camera {args.camera}, LEDs {args.leds})")
+    kind = "pinhole" if args.pinhole else "lens and sensor"
+    console.print(f"wrote {path} ({w} x {h} px, camera {args.camera}, {kind}, LEDs {args.leds})")
     return 0

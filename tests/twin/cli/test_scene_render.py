@@ -62,15 +62,24 @@ def test_scene_rejects_a_bad_scenario(tmp_path, capsys):
     assert not out.exists()  # nothing runs on a scenario that fails validation
 
 
-def test_render_writes_an_image_and_the_leds_show(tmp_path, capsys):
+@pytest.mark.parametrize("pinhole", [True, False])
+def test_render_writes_an_image_and_the_leds_show(tmp_path, capsys, pinhole):
     off, on = tmp_path / "off.png", tmp_path / "on.png"
-    assert main(["render", str(SMOKE), "--camera", "cam1", "--out", str(off)]) == 0
-    assert main(["render", str(SMOKE), "--camera", "cam1", "--leds", "on", "--out", str(on)]) == 0
-    assert "320 x 240" in capsys.readouterr().out
+    extra = ["--pinhole"] if pinhole else []
+    assert main(["render", str(SMOKE), "--camera", "cam1", "--out", str(off), *extra]) == 0
+    assert (
+        main(["render", str(SMOKE), "--camera", "cam1", "--leds", "on", "--out", str(on), *extra])
+        == 0
+    )
+    text = capsys.readouterr().out
+    assert "320 x 240" in text
+    assert ("pinhole" in text) == pinhole
     a, b = cv2.imread(str(off)), cv2.imread(str(on))
     assert a.shape == (240, 320, 3)
+    # Only the LEDs change: a lit LED adds hundreds of DN summed over the channels; the
+    # sensor noise of two frames (about 3.4 DN a channel) passes 60 in no pixel of 76800.
     diff = np.abs(a.astype(int) - b.astype(int)).sum(axis=2)
-    assert 0 < (diff > 30).sum() < 500  # only the LEDs change
+    assert 0 < (diff > 60).sum() < 500
 
 
 @pytest.mark.parametrize("camera", ["cam9"])

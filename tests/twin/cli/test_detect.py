@@ -1,0 +1,117 @@
+"""``twin detect`` on the twin's frames and on image files, and its bad inputs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from twin.cli import main
+
+SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
+LED_RANGE = SCENARIOS / "led_range.toml"
+
+
+def test_detect_in_the_twin_then_on_the_saved_frames(tmp_path, capsys):
+    out = tmp_path / "twin"
+    code = main(
+        [
+            "detect",
+            "--scenario",
+            str(LED_RANGE),
+            "--camera",
+            "far",
+            "--distance",
+            "7",
+            "--out",
+            str(out),
+        ]
+    )
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "error px" in text
+    doc = json.loads((out / "detections.json").read_text())
+    leds = doc["leds"]
+    assert [d["failure"] for d in leds] == [None] * 4
+    for d in leds:
+        assert np.linalg.norm(np.subtract(d["pixel"], d["truth"])) < 0.3
+    assert cv2.imread(str(out / "overlay.png")).shape == (720, 960, 3)
+    frames = sorted(out.glob("frame_*.png"))
+    assert len(frames) == 6
+
+    # The same frames as image files, as from a real camera: the same positions.
+    files = tmp_path / "files"
+    code = main(
+        [
+            "detect",
+            *map(str, frames),
+            "--sequence",
+            "binary",
+            "--led-line",
+            "0.35",
+            "0.65",
+            "0.95",
+            "1.25",
+            "--out",
+            str(files),
+        ]
+    )
+    assert code == 0
+    again = json.loads((files / "detections.json").read_text())["leds"]
+    for a, b in zip(leds, again, strict=True):
+        np.testing.assert_allclose(a["pixel"], b["pixel"], atol=1e-9)
+        assert "truth" not in b
+
+
+def test_an_led_out_of_view_is_reported_not_guessed(tmp_path, capsys):
+    out = tmp_path / "near"
+    # 3.2 m from the steep camera: the lowest LED falls below the image.
+    assert (
+        main(
+            [
+                "detect",
+                "--scenario",
+                str(LED_RANGE),
+                "--camera",
+                "near",
+                "--distance",
+                "3.2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    leds = json.loads((out / "detections.json").read_text())["leds"]
+    assert leds[0]["failure"] == "not_in_view"
+    assert leds[0]["pixel"] is None
+    assert "not_in_view" in capsys.readouterr().out
+
+
+def test_bad_inputs(tmp_path, capsys):
+    img = tmp_path / "a.png"
+    cv2.imwrite(str(img), np.zeros((20, 30, 3), np.uint8))
+    small = tmp_path / "b.png"
+    cv2.imwrite(str(small), np.zeros((10, 30, 3), np.uint8))
+    cases = [
+        (["detect", str(img)], "has 6 frames; got 1 image file"),
+        (["detect", *[str(img)] * 5, str(tmp_path / "missing.png")], "cannot read"),
+        (["detect", *[str(img)] * 5, str(small)], "differ in size"),
+        (["detect", str(img), "--scenario", str(LED_RANGE), "--camera", "far"], "not both"),
+        (["detect", "--scenario", str(LED_RANGE), "--camera", "cam9"], "expected one of near, far"),
+        (
+            ["detect", "--scenario", str(LED_RANGE), "--camera", "near", "--distance", "40"],
+            "does not see",
+        ),
+        (
+            ["detect", "--scenario", str(LED_RANGE), "--camera", "near", "--at", "1"],
+            "X Y [YAW_DEG]",
+        ),
+        (["detect", "--leds", "0", str(img)], "at least 1"),
+        (["detect", *[str(img)] * 6, "--camera", "near"], "need --scenario"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        assert message in capsys.readouterr().err, argv
