@@ -49,16 +49,7 @@ from calib.detection.results import (
 )
 from calib.detection.sequence import SwitchingSequence, as_sequence
 
-__all__ = [
-    "DetectionFailure",
-    "DetectorConfig",
-    "LedDetection",
-    "LedDetections",
-    "NoiseModel",
-    "RejectReason",
-    "RejectedCandidate",
-    "detect_leds",
-]
+__all__ = ["detect_leds"]
 
 MAX_CANDIDATES = 200  # components measured per LED (the brightest); more are only counted
 MIN_LINE_LEDS = 3  # found LEDs needed to predict a missing one's place on the mast

@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from types import TracebackType
 
 import mujoco
 import numpy as np
@@ -26,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
 from calib.opencv_camera import OpenCVCamera
+from twin.closing import Closing
 from twin.scenario.schema import SensorConfig
 from twin.sim.lens import LensWarp, lens_warp
 from twin.sim.people import person_pose
@@ -109,7 +109,7 @@ class Frame:
         return np.array([t.pixel for t in self.truth(child)])
 
 
-class CameraSimulator:
+class CameraSimulator(Closing):
     """Renders a world's cameras through their lens and sensor, with ground truth.
 
     Args:
@@ -260,17 +260,6 @@ class CameraSimulator:
     def close(self) -> None:
         """Free the rendering contexts."""
         self.renderer.close()
-
-    def __enter__(self) -> CameraSimulator:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def project_or_nan(camera: TsaiCamera | OpenCVCamera, points: ArrayLike) -> NDArray[np.float64]:

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.closing import Closing
 from twin.sim.camera import PIXEL_PITCH, principal_pixel_from_opencv
 from twin.sim.gl import make_renderer
 from twin.sim.scene import World
@@ -46,7 +46,7 @@ class PinholeView:
     cy: float
 
 
-class CameraRenderer:
+class CameraRenderer(Closing):
     """Renders a world's fixed cameras.
 
     One :class:`mujoco.Renderer` is kept per distinct image size. Use as a context
@@ -118,17 +118,6 @@ class CameraRenderer:
         for r in self._renderers.values():
             r.close()
         self._renderers.clear()
-
-    def __enter__(self) -> CameraRenderer:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def save_png(image: NDArray[np.uint8] | NDArray[np.uint16], path: str | Path) -> Path:

@@ -260,84 +260,44 @@ def test_stairs_whose_first_step_is_below_the_ground_clearance(tmp_path):
     assert "step taller than 0.08 m" in issue.expected
 
 
-def test_opencv_distortion_with_a_wrong_number_of_coefficients(tmp_path):
-    path = variant(
-        tmp_path,
-        "cv3",
-        [
-            (
-                "image_size = [320, 240]",
-                "image_size = [320, 240]\nopencv_distortion = [0.1, 0.0, 0.0]",
-            )
-        ],
-    )
-    issue = _only(_error(path), "cameras[0].opencv_distortion")
-    assert "4, 5 or 8 coefficients" in issue.problem
+CAMERA_LINE = "image_size = [320, 240]"
+ROUTE_LINE = "[route]"
 
 
-def test_kappa1_and_opencv_distortion_together(tmp_path):
-    path = variant(
-        tmp_path,
-        "twolens",
-        [
-            (
-                "image_size = [320, 240]",
-                "image_size = [320, 240]\nkappa1 = 1e-7\nopencv_distortion = [0.1, 0.0, 0.0, 0.0]",
-            )
-        ],
-    )
-    issue = _only(_error(path), "cameras[0]")
-    assert "either kappa1" in issue.problem
-
-
-def test_sensor_settings_out_of_range(tmp_path):
-    path = variant(
-        tmp_path,
-        "sensor",
-        [
-            (
-                "image_size = [320, 240]",
-                "image_size = [320, 240]\nsensor = { supersample = 0, bits = 7 }",
-            )
-        ],
-    )
-    err = _error(path)
-    _only(err, "cameras[0].sensor.supersample")
-    _only(err, "cameras[0].sensor.bits")
-
-
-def test_person_walking_through_a_wall(tmp_path):
-    path = variant(
-        tmp_path,
-        "walker",
-        [
-            (
-                "[route]",
-                '[[people]]\nname = "walker"\nwaypoints = [[0.0, 2.0], [0.0, 9.0]]\n\n[route]',
-            )
-        ],
-    )
-    issue = _only(_error(path), "people[0].waypoints[0]")
-    assert "walks through a wall" in issue.problem
-
-
-def test_person_named_like_a_robot(tmp_path):
-    path = variant(
-        tmp_path,
-        "twin",
-        [
-            (
-                "[route]",
-                '[[people]]\nname = "child1"\nwaypoints = [[0.0, 2.0], [3.0, 2.0]]\n\n[route]',
-            )
-        ],
-    )
-    issue = _only(_error(path), "people[0].name")
-    assert "unique" in issue.problem
-
-
-def test_flicker_out_of_range(tmp_path):
-    path = variant(
-        tmp_path, "flicker", [("floor_z = -0.40", "floor_z = -0.40\nlighting = { flicker = 0.9 }")]
-    )
-    _only(_error(path), "space.lighting.flicker")
+@pytest.mark.parametrize(
+    ("anchor", "added", "key", "problem"),
+    [
+        (
+            CAMERA_LINE,
+            "opencv_distortion = [0.1, 0.0, 0.0]",
+            "cameras[0].opencv_distortion",
+            "4, 5 or 8 coefficients",
+        ),
+        (
+            CAMERA_LINE,
+            "kappa1 = 1e-7\nopencv_distortion = [0.1, 0.0, 0.0, 0.0]",
+            "cameras[0]",
+            "either kappa1",
+        ),
+        (CAMERA_LINE, "sensor = { supersample = 0 }", "cameras[0].sensor.supersample", ""),
+        (CAMERA_LINE, "sensor = { bits = 7 }", "cameras[0].sensor.bits", ""),
+        (
+            ROUTE_LINE,
+            '[[people]]\nname = "walker"\nwaypoints = [[0.0, 2.0], [0.0, 9.0]]\n',
+            "people[0].waypoints[0]",
+            "walks through a wall",
+        ),
+        (
+            ROUTE_LINE,
+            '[[people]]\nname = "child1"\nwaypoints = [[0.0, 2.0], [3.0, 2.0]]\n',
+            "people[0].name",
+            "unique",
+        ),
+        ("floor_z = -0.40", "lighting = { flicker = 0.9 }", "space.lighting.flicker", ""),
+    ],
+)
+def test_bad_camera_sensor_lighting_and_people(tmp_path, anchor, added, key, problem):
+    # The line is added after the anchor (before it for a table header).
+    new = f"{added}\n{anchor}" if anchor.startswith("[") else f"{anchor}\n{added}"
+    issue = _only(_error(variant(tmp_path, "bad", [(anchor, new)])), key)
+    assert problem in issue.problem
