@@ -115,6 +115,9 @@ def bench_accuracy(
                     continue
                 errors.append(d.pixel - t.pixel)
                 sigmas.append(d.sigma_px)
+            if not errors:
+                rows.append((distance, 0, float("nan"), float("nan"), float("nan")))
+                continue
             e = np.linalg.norm(np.array(errors), axis=1)
             rows.append(
                 (
@@ -122,7 +125,7 @@ def bench_accuracy(
                     len(e),
                     float(np.sqrt(np.mean(e**2))),
                     float(e.max()),
-                    float(np.mean(sigmas)),
+                    float(np.mean(sigmas)) if sigmas else float("nan"),
                 )
             )
     return rows

@@ -141,7 +141,7 @@ class OpenCVConversion:
     rms_error_px: float
 
 
-def _image_grid(image_size: tuple[int, int], step: float = 4.0) -> NDArray[np.float64]:
+def image_grid(image_size: tuple[int, int], step: float = 4.0) -> NDArray[np.float64]:
     """(N, 2) pixels on a grid covering the whole image, corners and edges included."""
     w, h = image_size
     us = np.unique(np.concatenate([np.arange(-0.5, w - 0.5, step), [w - 0.5]]))
@@ -175,7 +175,7 @@ def tsai_to_opencv(camera: TsaiCamera, *, tolerance_px: float = 0.01) -> OpenCVC
         The OpenCV camera (same pose) and the largest and RMS disagreement, px.
     """
     f, sx = camera.f, camera.sx
-    grid = _image_grid(camera.image_size)
+    grid = image_grid(camera.image_size)
     xy_u = camera.pixels_to_normalized(grid)  # exact inverse of Tsai's distortion
     xy_d = np.column_stack([(grid[:, 0] - camera.cx) / (sx * f), (grid[:, 1] - camera.cy) / f])
     scale = np.array([sx * f, f])

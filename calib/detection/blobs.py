@@ -80,6 +80,29 @@ def centroid(
     return np.array([u, v]), sigma
 
 
+def roundness(signal: NDArray[np.float64], window: NDArray[np.bool_]) -> float:
+    """How round a spot is: the ratio of the smaller to the larger principal second moment
+    of the positive part of ``signal`` inside ``window`` (1: a disc; 0: a line).
+
+    The 1/12 px^2 that sampling by square pixels adds to each moment of any spot is taken
+    off first, so small discs come out near 1 too. NaN without positive signal.
+    """
+    weights = np.where(window, np.maximum(signal, 0.0), 0.0)
+    total = float(weights.sum())
+    if total <= 0.0:
+        return math.nan
+    rows, cols = np.indices(signal.shape, dtype=float)
+    u = (weights * cols).sum() / total
+    v = (weights * rows).sum() / total
+    cuu = (weights * (cols - u) ** 2).sum() / total - 1.0 / 12.0
+    cvv = (weights * (rows - v) ** 2).sum() / total - 1.0 / 12.0
+    cuv = (weights * (cols - u) * (rows - v)).sum() / total
+    lam = np.linalg.eigvalsh(np.array([[cuu, cuv], [cuv, cvv]]))
+    if lam[1] <= 0.0:
+        return 1.0
+    return float(max(lam[0], 0.0) / lam[1])
+
+
 def frame_levels(
     diffs: NDArray[np.float64],
     variances: NDArray[np.float64],

@@ -18,7 +18,7 @@ class DetectorConfig:
     Attributes:
         threshold_sigma: a pixel of an LED's code-matched difference image belongs to a
             candidate when it exceeds this many sigma. 5: about 3e-7 false pixels per pixel,
-            0.1 per 320 x 240 image per LED; such single noise pixels then fail min_snr.
+            0.02 per 320 x 240 image per LED; such single noise pixels then fail min_snr.
         min_snr: smallest flux signal-to-noise ratio of an accepted candidate (flux summed
             over the centroid window / its standard deviation). 5: a single noise pixel at
             5 sigma in a 3 x 3 window reaches only about 5/3; at snr 5 a small spot's centroid
@@ -60,11 +60,27 @@ class DetectorConfig:
             smallest LEDs (2.5 px).
         noise_floor_dn: smallest noise the detector assumes, DN. 0.5: half a quantisation
             step; noise-free rendered images would otherwise have an infinite SNR.
-        saturation_dn: level at which pixels saturate; None: the maximum of an integer
-            type, no saturation for floats.
+        saturation_dn: level at which pixels saturate; None: 255 for 8-bit frames; for
+            16-bit ones the smallest 2^k - 1 that holds the brightest pixel (a 12-bit
+            camera's uint16 frames: 4095; give the camera's own full scale when known);
+            no saturation for floats.
         line_tolerance_px: the found LEDs must lie within this distance of a straight image
             line for the line prediction of a missing one (OCCLUDED vs NOT_IN_VIEW). 3:
             allows the bending of a line by lens distortion near the image corners.
+        partial_roundness: a found spot of at least ``partial_min_area_px`` and SNR of at
+            least ``partial_min_snr`` whose roundness (smaller over larger principal second
+            moment) is below this is PARTIAL: partly hidden. 0.7: whole LEDs rendered by
+            the twin at 3 to 12 m measure 0.95 or more; an LED with a third of it hidden by
+            a crate measures 0.58 (its centroid 0.6 px off), one with a tenth hidden 0.81
+            (0.2 px off, accepted).
+        partial_min_area_px: smallest spot whose roundness is judged, and smallest median
+            area of the other LEDs for the area test, px. 20: below that the pixel grid and
+            the noise alone make discs look elongated or small.
+        partial_min_snr: smallest SNR of a spot whose roundness is judged. 30: a dim 12 px
+            spot at SNR 20 can measure 0.64 from noise alone.
+        partial_area_ratio: a found spot smaller than this fraction of the median area of
+            the assembly's other found LEDs is PARTIAL. 0.6: the LEDs of one assembly are
+            at about the same distance (their areas differ by less than a quarter at 3 m).
     """
 
     threshold_sigma: float = 5.0
@@ -85,6 +101,10 @@ class DetectorConfig:
     noise_floor_dn: float = 0.5
     saturation_dn: float | None = None
     line_tolerance_px: float = 3.0
+    partial_roundness: float = 0.7
+    partial_min_area_px: int = 20
+    partial_min_snr: float = 30.0
+    partial_area_ratio: float = 0.6
 
     def __post_init__(self) -> None:
         positive = (
@@ -97,12 +117,17 @@ class DetectorConfig:
             "faint_smooth_px",
             "noise_floor_dn",
             "line_tolerance_px",
+            "partial_min_snr",
         )
         for name in positive:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"DetectorConfig.{name} must be a positive number, got {value!r}")
-        for name in ("max_area_px", "min_change_area_px"):
+        for name in ("partial_roundness", "partial_area_ratio"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0 <= value <= 1):
+                raise ValueError(f"DetectorConfig.{name} must lie in [0, 1], got {value!r}")
+        for name in ("max_area_px", "min_change_area_px", "partial_min_area_px"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(f"DetectorConfig.{name} must be a positive integer, got {value!r}")

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage
 
-from calib.detection.blobs import centroid, check_code, dilate, frame_levels
+from calib.detection.blobs import centroid, check_code, dilate, frame_levels, roundness
 from calib.detection.classify import find_faint, inside_image, predict_on_line
 from calib.detection.config import DetectorConfig
 from calib.detection.frames import estimate_gains, load_frames
@@ -69,6 +69,7 @@ class _Candidate:
     box: tuple[slice, slice]
     window: NDArray[np.bool_]
     saturated: bool
+    roundness: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -338,6 +339,7 @@ def _candidates(
                 box=box,
                 window=window,
                 saturated=saturated,
+                roundness=roundness(sig, window),
             )
         )
     return out, note
@@ -363,9 +365,24 @@ def _classify(
     for acc in accepted:
         for c in acc:
             taken[c.box] |= c.window
+    partial = _partly_hidden(found, config)
     out = []
     for led in range(seq.n_leds):
         code = seq.code(led)
+        if led in partial:
+            c = found[led]
+            out.append(
+                LedDetection(
+                    led,
+                    peak=c.peak,
+                    area=c.area,
+                    snr=c.snr,
+                    failure=DetectionFailure.PARTIAL,
+                    message=f"code {code}: found at {_fmt(c.pixel)} but {partial[led]}; "
+                    "its centroid would be biased, so it is not used",
+                )
+            )
+            continue
         if led in found:
             c = found[led]
             note = (
@@ -377,6 +394,38 @@ def _classify(
             continue
         failure, message = _why_missing(prep, seq, led, candidates, accepted, taken, line, config)
         out.append(LedDetection(led, failure=failure, message=f"code {code}: {message}"))
+    return out
+
+
+def _partly_hidden(found: dict[int, _Candidate], config: DetectorConfig) -> dict[int, str]:
+    """The found LEDs whose spot looks cut (partly hidden), with the evidence.
+
+    An LED's image is a disc. A spot that is (a) elongated (roundness below
+    ``partial_roundness``, for spots of at least ``partial_min_area_px``), (b) much smaller
+    than the assembly's other LEDs (area below ``partial_area_ratio`` of their median: they
+    are all at about the same distance), or (c) off the place its mast line predicts from
+    three others by more than ``partial_line_px``, is partly hidden: its centroid is pulled
+    away from the LED's centre, by up to a spot's radius.
+    """
+    out: dict[int, str] = {}
+    for led, c in found.items():
+        others = [o for k, o in found.items() if k != led]
+        if (
+            c.area >= config.partial_min_area_px
+            and c.snr >= config.partial_min_snr
+            and c.roundness < config.partial_roundness
+        ):
+            out[led] = (
+                f"its spot is elongated (roundness {c.roundness:.2f} < "
+                f"{config.partial_roundness:g}): partly hidden"
+            )
+        elif len(others) >= 2:
+            median = float(np.median([o.area for o in others]))
+            if median >= config.partial_min_area_px and c.area < config.partial_area_ratio * median:
+                out[led] = (
+                    f"its spot ({c.area} px) is much smaller than the other LEDs' "
+                    f"({median:.0f} px): partly hidden"
+                )
     return out
 
 
@@ -446,23 +495,34 @@ def _why_missing(
             "border; the LED is cut by it"
         )
     h, w = prep.reference.shape
-    if line is None:
-        return DetectionFailure.NOT_FOUND, (
-            "nothing found; out of view or hidden (give led_line to tell which)"
+    moved = [c for c in mine if RejectReason.SCENE_CHANGED in c.reasons]
+    if moved:
+        unknown = (
+            DetectionFailure.SCENE_CHANGED,
+            f"nothing found, and something moved in the view between the dark frames (a "
+            f"candidate at {_fmt(moved[0].pixel)} overlaps the change); it may hide the LED: "
+            "capture again",
         )
+    else:
+        unknown = (DetectionFailure.NOT_FOUND, "nothing found; out of view or hidden")
+    if line is None:
+        failure, message = unknown
+        if failure == DetectionFailure.NOT_FOUND:
+            message += " (give led_line to tell which)"
+        return failure, message
     others = [k for k in range(seq.n_leds) if k != led and len(accepted[k]) == 1]  # found LEDs
     if len(others) < MIN_LINE_LEDS:
-        return DetectionFailure.NOT_FOUND, (
-            f"nothing found; out of view or hidden (only {len(others)} other LEDs found, "
-            f"{MIN_LINE_LEDS} needed to predict its place on the line)"
+        return unknown[0], (
+            f"{unknown[1]} (only {len(others)} other LEDs found, {MIN_LINE_LEDS} needed to "
+            "predict its place on the line)"
         )
     pixels = np.array([accepted[k][0].pixel for k in others])
     pred = predict_on_line(line[others], pixels, float(line[led]))
     if pred.residual_px > config.line_tolerance_px:
-        return DetectionFailure.NOT_FOUND, (
-            f"nothing found; out of view or hidden (the found LEDs are up to "
-            f"{pred.residual_px:.1f} px off a straight line, more than line_tolerance_px "
-            f"{config.line_tolerance_px:g}, so its place cannot be predicted)"
+        return unknown[0], (
+            f"{unknown[1]} (the found LEDs are up to {pred.residual_px:.1f} px off a straight "
+            f"line, more than line_tolerance_px {config.line_tolerance_px:g}, so its place "
+            "cannot be predicted)"
         )
     if pred.pixel is None:
         return DetectionFailure.NOT_IN_VIEW, (
@@ -471,6 +531,13 @@ def _why_missing(
     if not inside_image(pred.pixel, (h, w)):
         return DetectionFailure.NOT_IN_VIEW, (
             f"the other LEDs on its line put it at {_fmt(pred.pixel)}, outside the {w}x{h} image"
+        )
+    r = min(max(round(float(pred.pixel[1])), 0), h - 1)
+    col = min(max(round(float(pred.pixel[0])), 0), w - 1)
+    if prep.changed[r, col]:
+        return DetectionFailure.SCENE_CHANGED, (
+            f"the other LEDs on its line put it at {_fmt(pred.pixel)}, where the scene changed "
+            "between the dark frames (someone or something moved there): capture again"
         )
     return DetectionFailure.OCCLUDED, (
         f"the other LEDs on its line put it at {_fmt(pred.pixel)} inside the image, but "

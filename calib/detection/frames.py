@@ -56,6 +56,19 @@ def _to_array(frames: ArrayLike | Sequence[ArrayLike]) -> NDArray:
     return np.stack(arrays)
 
 
+def _full_scale(arr: NDArray) -> float:
+    """Full scale of integer frames: the maximum of the type for 8 bits; for wider types
+    the smallest 2^k - 1 (k >= 8) that holds the largest value, since 10-, 12- and 14-bit
+    cameras deliver uint16 with the top bits empty. Floats: no saturation (inf)."""
+    if arr.dtype.kind not in "iu":
+        return np.inf
+    top = int(np.iinfo(arr.dtype).max)
+    if top <= 255:
+        return float(top)
+    bits = max(8, int(arr.max()).bit_length())
+    return float(min(top, 2**bits - 1))
+
+
 def load_frames(
     frames: ArrayLike | Sequence[ArrayLike],
     n_expected: int,
@@ -107,10 +120,7 @@ def load_frames(
         raise ValueError(f"channel must be one of {CHANNELS}, got {channel!r}")
     if color_order not in COLOR_ORDERS:
         raise ValueError(f"color_order must be one of {COLOR_ORDERS}, got {color_order!r}")
-    if saturation_dn is None:
-        sat = float(np.iinfo(arr.dtype).max) if arr.dtype.kind in "iu" else np.inf
-    else:
-        sat = float(saturation_dn)
+    sat = _full_scale(arr) if saturation_dn is None else float(saturation_dn)
     data = arr.astype(np.float64)
     if data.ndim == 4:
         saturated = (data >= sat).any(axis=3)

@@ -20,6 +20,7 @@ class DetectionFailure(StrEnum):
     AMBIGUOUS = "ambiguous"  # more than one candidate matches the LED's code
     SCENE_CHANGED = "scene_changed"  # a match, but the scene changed there (someone moved)
     NOT_FOUND = "not_found"  # nothing found; out of view or hidden
+    PARTIAL = "partial"  # found, but its spot is cut (partly hidden): centroid biased
 
 
 class RejectReason(StrEnum):
@@ -70,7 +71,9 @@ class LedDetection:
         area: pixels above the threshold; 0 if not found.
         snr: flux signal-to-noise ratio over the centroid window; NaN if not found.
         sigma_px: predicted standard deviation of each centroid coordinate from the noise
-            model, px; NaN if not found.
+            model, px; NaN if not found. Sensor noise only: how the spot was sampled (a
+            small disc on the pixel grid, the lens, the renderer's antialiasing) adds a
+            bias that does not scatter, measured 0.02-0.08 px on the twin's images.
         failure: why there is no position; None when found.
         message: the failure in words (with candidate positions or the predicted place), or
             notes on a found LED (saturation); "" if none.

@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 
 from calib import OpenCVCamera, TsaiCamera, from_paper_units, to_paper_units, tsai_to_opencv
 from calib.io import load_camera, save_camera
-from calib.opencv_camera import _image_grid
+from calib.opencv_camera import image_grid
 from calib.paper_units import PaperParameters, kappa1_mm_to_px, kappa1_px_to_mm
 from calib.synthetic import paper_camera
 
@@ -64,7 +64,7 @@ KAPPAS = [8.08e-8, 4.33e-7, 7.02e-7, -4.33e-7, -7.02e-7, 2.1e-6, -2.1e-6, 0.0]
 def test_opencv_export_agrees_within_005_px(kappa1: float) -> None:
     cam = paper_camera(1, kappa1=kappa1, sx=1.01)
     conv = tsai_to_opencv(cam)
-    grid = _image_grid(cam.image_size, step=2.0)  # a denser grid than the fit used
+    grid = image_grid(cam.image_size, step=2.0)  # a denser grid than the fit used
     origins, dirs = cam.unproject(grid)
     pts = origins + 9.0 * dirs
     err = np.linalg.norm(conv.camera.project(pts) - cam.project(pts), axis=1)
@@ -111,7 +111,7 @@ def test_tsai_camera_through_opencv_yaml_projects_the_same(tmp_path, cameras) ->
     path = tmp_path / "cam.yml"
     save_camera(tsai, path)
     back = load_camera(path)
-    grid = _image_grid(tsai.image_size, step=8.0)
+    grid = image_grid(tsai.image_size, step=8.0)
     origins, dirs = tsai.unproject(grid)
     pts = origins + 6.0 * dirs
     assert np.abs(back.project(pts) - grid).max() < 0.05

@@ -27,6 +27,10 @@ from rich.table import Table
 
 from calib.detection import DetectorConfig, LedDetections, SwitchingSequence, detect_leds
 from twin.cli.scene import load_or_report
+from twin.png import save_png
+
+# Exit code when the detector ran but found no LED (1 is Python's own for a crash).
+NO_LED_FOUND = 3
 
 SEQUENCES = {"one-at-a-time": SwitchingSequence.one_at_a_time, "binary": SwitchingSequence.binary}
 
@@ -67,6 +71,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="gray",
         help="how colour images become one channel (default gray)",
     )
+    p.add_argument(
+        "--saturation",
+        type=float,
+        metavar="DN",
+        help="the camera's full scale (default: 255 for 8-bit images, else the smallest "
+        "2^k - 1 that holds the brightest pixel; the twin's sensor bits)",
+    )
     p.add_argument("--scenario", type=Path, help="capture the frames in this scenario's twin")
     p.add_argument("--camera", help="the scenario's camera")
     p.add_argument("--child", default=None, help="the child whose LEDs are used (default: first)")
@@ -90,12 +101,14 @@ def _error(message: str) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Detect and report; exit code 0, 2 for bad input, 1 when no LED was found."""
+    """Detect and report; exit code 0, 2 for bad input, 3 when no LED was found."""
     console = Console(highlight=False, soft_wrap=True)
     if args.leds < 1:
         return _error(f"--leds must be at least 1, got {args.leds}")
     sequence = SEQUENCES[args.sequence](args.leds)
-    config = DetectorConfig(channel=args.channel)
+    if args.saturation is not None and not args.saturation > 0:
+        return _error(f"--saturation must be positive, got {args.saturation:g}")
+    saturation = args.saturation
     truth = None
     if args.scenario is not None:
         if args.images:
@@ -103,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
         captured = _capture(args, sequence, console)
         if isinstance(captured, int):
             return captured
-        frames, truth, led_line, source = captured
+        frames, truth, led_line, source, full_scale = captured
+        saturation = full_scale if saturation is None else saturation
     else:
         if args.camera is not None or args.at is not None:
             return _error("--camera and --at need --scenario")
@@ -117,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
             return _error(loaded)
         frames, led_line = loaded, args.led_line
         source = f"{len(frames)} image files"
+    config = DetectorConfig(channel=args.channel, saturation_dn=saturation)
     try:
         result = detect_leds(frames, sequence, config=config, led_line=led_line)
     except ValueError as exc:
@@ -127,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         console.print(f"note: {message}", markup=False)
     if args.out is not None:
         _write(args.out, frames, sequence, result, truth, console, save_frames=truth is not None)
-    return 0 if result.found.any() else 1
+    return 0 if result.found.any() else NO_LED_FOUND
 
 
 def _read_images(paths: list[Path]) -> list[NDArray] | str:
@@ -197,7 +212,8 @@ def _capture(args: argparse.Namespace, sequence: SwitchingSequence, console: Con
         f"{sc.name}: camera {args.camera}, {child} at ({xy[0]:.2f}, {xy[1]:.2f}) m, "
         f"yaw {np.degrees(yaw):.1f} deg"
     )
-    return [f.image for f in captured], truth, led_line, source
+    full_scale = float(2 ** sc.camera(args.camera).sensor.bits - 1)
+    return [f.image for f in captured], truth, led_line, source, full_scale
 
 
 def _print_table(console: Console, result: LedDetections, truth: NDArray | None) -> None:
@@ -235,8 +251,6 @@ def _write(
     console: Console,
     save_frames: bool,
 ) -> None:
-    from twin.sim.render import save_png
-
     out.mkdir(parents=True, exist_ok=True)
     doc = {
         "sequence": sequence.pattern.astype(int).tolist(),

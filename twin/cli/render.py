@@ -51,8 +51,9 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
     import twin.sim  # noqa: F401  (chooses the headless OpenGL backend)
+    from twin.png import save_png
     from twin.sim.capture import CameraSimulator
-    from twin.sim.render import CameraRenderer, save_png
+    from twin.sim.render import CameraRenderer
     from twin.sim.scene import build_world
 
     world = build_world(sc)

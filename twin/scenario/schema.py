@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from calib.camera import TsaiCamera
+from calib.lens_coverage import lens_fold_problem
 from calib.opencv_camera import OpenCVCamera
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
@@ -159,7 +160,8 @@ class SensorConfig(Frozen):
     The rendered scene gives each pixel a level in [0, 1] (1: white at full exposure); the
     sensor turns it into ``exposure * level * full_well_e`` photo-electrons, adds photon
     (Poisson) noise and read noise, and quantises to ``bits`` with full scale at the full
-    well. The defaults give about 2.4 DN of noise at mid-grey and 0.8 DN in the dark (8 bits).
+    well. The defaults give about 2.4 DN of noise at mid-grey, 0.8 DN at 10 DN and 0.5 DN in
+    the dark (8 bits).
 
     Attributes:
         exposure: exposure relative to the rendered level (2: twice as bright, clipping
@@ -225,6 +227,9 @@ class CameraConfig(Frozen):
             raise ValueError(
                 "give either kappa1 (Tsai) or opencv_distortion, not both: set kappa1 = 0"
             )
+        problem = lens_fold_problem(self.lens())
+        if problem is not None:
+            raise ValueError(problem)
         return self
 
     @field_validator("view_direction")

@@ -28,7 +28,6 @@ from calib.opencv_camera import OpenCVCamera
 from twin.closing import Closing
 from twin.scenario.schema import SensorConfig
 from twin.sim.lens import LensWarp, lens_warp
-from twin.sim.people import person_pose
 from twin.sim.render import CameraRenderer
 from twin.sim.robots import N_LEDS
 from twin.sim.scene import World
@@ -87,7 +86,8 @@ class Frame:
         image: (H, W, 3) RGB, uint8 (or uint16 for a sensor of more than 8 bits).
         light_level: level of the lights relative to the scenario's.
         leds: the truth for every LED of every child, in child then LED order.
-        people: (name, (2,) floor position in m) of every person at the exposure.
+        people: (name, (2,) floor position in m) of every person, where the image shows
+            them.
     """
 
     camera: str
@@ -116,13 +116,24 @@ class CameraSimulator(Closing):
         world: the world (its current state is captured).
         seed: seed of the sensor noise and flicker (default: from the scenario's seed).
 
-    Use as a context manager or call :meth:`close` (it holds rendering contexts).
+    Use as a context manager or call :meth:`close` (it holds rendering contexts). Not for
+    use from several threads: each render sets the camera's intrinsics in the shared
+    model for its duration.
     """
 
     def __init__(self, world: World, seed: int | None = None) -> None:
         self.world = world
         root = world.scenario.seed if seed is None else seed
-        self.rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(SENSOR_STREAM,)))
+        # Independent streams: the light's flicker, and each camera's sensor noise, so that
+        # switching the noise off or capturing another camera first changes nothing else.
+        streams = np.random.SeedSequence(root, spawn_key=(SENSOR_STREAM,)).spawn(
+            1 + len(world.camera_names)
+        )
+        self.flicker_rng = np.random.default_rng(streams[0])
+        self.noise_rng = {
+            name: np.random.default_rng(seq)
+            for name, seq in zip(world.camera_names, streams[1:], strict=True)
+        }
         self.renderer = CameraRenderer(world)
         self._warps: dict[tuple[str, int], LensWarp] = {}
         self._led_radius = {}
@@ -154,7 +165,7 @@ class CameraSimulator(Closing):
         sensor = cfg.sensor if sensor is None else sensor
         warp = self.warp(camera, sensor.supersample)
         levels = warp.apply(self.renderer.render_view(camera, warp.view))
-        image = expose(levels, sensor, self.rng if sensor.noise else None)
+        image = expose(levels, sensor, self.noise_rng[camera] if sensor.noise else None)
         return Frame(
             camera=camera,
             time=self.world.time,
@@ -162,7 +173,8 @@ class CameraSimulator(Closing):
             light_level=self.world.light_level,
             leds=self.led_truth(camera),
             people=tuple(
-                (p.name, person_pose(p, self.world.time)[0]) for p in self.world.scenario.people
+                (p.name, self.world.data.xpos[self.world.model.body(p.name).id][:2].copy())
+                for p in self.world.scenario.people
             ),
         )
 
@@ -185,7 +197,8 @@ class CameraSimulator(Closing):
             camera: the camera's name. child: the child whose LEDs are switched.
             pattern: (n_frames, 4) bool, which LEDs are lit in each frame; or an object
                 with such a ``pattern`` attribute (:class:`calib.detection.SwitchingSequence`).
-            frame_interval: time between frames, s (0: the world stands still).
+            frame_interval: time between frames, s (0: the world stands still); the world
+                runs whole control periods, so it is rounded to one (0.02 s by default).
             sensor: sensor settings to use instead of the scenario's.
         """
         rows = np.asarray(getattr(pattern, "pattern", pattern), dtype=bool)
@@ -201,7 +214,7 @@ class CameraSimulator(Closing):
                 self.world.set_leds(child, [bool(b) for b in row])
                 level = start_level * (1.0 + lighting.drift_per_frame) ** k
                 if lighting.flicker > 0:
-                    level *= max(0.0, 1.0 + lighting.flicker * self.rng.standard_normal())
+                    level *= max(0.0, 1.0 + lighting.flicker * self.flicker_rng.standard_normal())
                 self.world.set_light_level(level)
                 frames.append(self.capture(camera, sensor))
                 if frame_interval > 0 and k + 1 < len(rows):

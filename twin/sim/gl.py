@@ -95,18 +95,27 @@ def backend_error(cause: BaseException | str) -> RenderBackendError:
 def make_renderer(model: object, height: int, width: int) -> object:
     """A :class:`mujoco.Renderer`, or :class:`RenderBackendError` naming what to install.
 
-    The model's offscreen buffer is enlarged first when it is smaller than the image.
+    The offscreen buffer is made for this image (the model's ``offwidth`` and
+    ``offheight`` are raised for the creation only, so that one large render does not make
+    every later renderer allocate as much).
     """
     import mujoco
 
     vis = model.vis.global_  # type: ignore[attr-defined]
-    vis.offwidth = max(int(vis.offwidth), int(width))
-    vis.offheight = max(int(vis.offheight), int(height))
-    if not os.environ.get("MUJOCO_GL"):
-        raise backend_error("no EGL or OSMesa library is installed")
+    saved = (int(vis.offwidth), int(vis.offheight))
+    vis.offwidth = max(saved[0], int(width))
+    vis.offheight = max(saved[1], int(height))
     try:
         return mujoco.Renderer(model, height=int(height), width=int(width))
     except ValueError:
         raise
     except Exception as err:
-        raise backend_error(f"{type(err).__name__}: {err}") from err
+        cause = f"{type(err).__name__}: {err}"
+        if not os.environ.get("MUJOCO_GL"):
+            cause += (
+                " (MUJOCO_GL is not set: import twin.sim before mujoco, or set MUJOCO_GL=egl "
+                "before Python starts)"
+            )
+        raise backend_error(cause) from err
+    finally:
+        vis.offwidth, vis.offheight = saved

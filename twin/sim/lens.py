@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
+from calib.lens_coverage import lens_fold_problem
 from calib.opencv_camera import OpenCVCamera
 from twin.sim.render import PinholeView
 
@@ -98,10 +99,16 @@ def lens_warp(camera: TsaiCamera | OpenCVCamera, supersample: int = 1) -> LensWa
     Args:
         camera: the camera (its intrinsics and distortion; the pose is not used).
         supersample: fine pixels per output pixel in each direction, 1..8.
+
+    Raises:
+        ValueError: a bad supersampling, or a distortion that folds inside the image.
     """
     if not 1 <= int(supersample) <= 8:
         raise ValueError(f"supersample must be an integer from 1 to 8, got {supersample}")
     s = int(supersample)
+    problem = lens_fold_problem(camera)
+    if problem is not None:
+        raise ValueError(problem)
     w, h = camera.image_size
     fx, fy, cx, cy = pinhole_intrinsics(camera)
     distorted = has_distortion(camera)
@@ -121,11 +128,6 @@ def lens_warp(camera: TsaiCamera | OpenCVCamera, supersample: int = 1) -> LensWa
             ]
         )
         uv = _undistorted_pixels(camera, outline, fx, fy, cx, cy)
-        if not np.isfinite(uv).all():
-            raise ValueError(
-                "the lens model does not cover the whole image (distortion beyond its fold "
-                "at the edges); reduce the distortion"
-            )
         left = max(0, math.ceil(-0.5 - uv[:, 0].min())) + MARGIN_PAD
         right = max(0, math.ceil(uv[:, 0].max() - (w - 0.5))) + MARGIN_PAD
         top = max(0, math.ceil(-0.5 - uv[:, 1].min())) + MARGIN_PAD

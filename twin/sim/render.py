@@ -12,7 +12,6 @@ draws it with other pinhole intrinsics (a larger, finer image for the lens model
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -118,17 +117,3 @@ class CameraRenderer(Closing):
         for r in self._renderers.values():
             r.close()
         self._renderers.clear()
-
-
-def save_png(image: NDArray[np.uint8] | NDArray[np.uint16], path: str | Path) -> Path:
-    """Write an (H, W, 3) RGB or (H, W) grey image (8 or 16 bits) as PNG; return the path."""
-    import cv2
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    img = np.asarray(image)
-    if img.ndim == 3:
-        img = img[:, :, ::-1]
-    if not cv2.imwrite(str(path), np.ascontiguousarray(img)):
-        raise OSError(f"could not write {path}")
-    return path

@@ -96,7 +96,9 @@ def test_predicted_sigma_matches_the_scatter() -> None:
     pixels, sigmas = [], []
     for _ in range(trials):
         frames = render(SEQ.pattern, leds, rng, shape=SHAPE, bg=bg)
-        res = detect_leds(frames, SEQ, noise=noise)
+        # The LEDs here differ in size on purpose, so the test that reports a spot much
+        # smaller than its neighbours as partly hidden is switched off.
+        res = detect_leds(frames, SEQ, noise=noise, config=DetectorConfig(partial_area_ratio=0.0))
         assert res.found.all(), res.summary()
         pixels.append(res.pixels())
         sigmas.append(res.sigmas())

@@ -199,6 +199,31 @@ def test_hidden_led_is_occluded(seq: SwitchingSequence) -> None:
     assert "nothing found; out of view or hidden" in res.leds[1].message
 
 
+@pytest.mark.parametrize("hidden", [0.4, 0.8])
+def test_a_partly_hidden_led_is_reported_partial_not_biased(
+    seq: SwitchingSequence, hidden: float
+) -> None:
+    # Something in front covers the lower part of LED 1 (10 px across here): the spot is
+    # cut, its centroid would move up by about a third of the hidden height.
+    leds = leds_at(PIXELS, diameter=10.0)
+    u, v = PIXELS[1]
+    rows = np.arange(SHAPE[0])[:, None]
+    cut_below = v + 5.0 - hidden * 10.0
+    mask = (rows > cut_below) & (rows < v + 8) & (np.abs(np.arange(SHAPE[1])[None, :] - u) < 8)
+    mask = np.broadcast_to(mask, SHAPE)
+    frames = render(seq.pattern, leds, np.random.default_rng(21), shape=SHAPE)
+    bg = render(seq.pattern, [None] * 4, np.random.default_rng(21), shape=SHAPE)
+    frames = np.where(mask[None], bg, frames)  # the cover hides the LED in every frame
+    res = detect_leds(frames, seq, led_line=HEIGHTS)
+    d = res.leds[1]
+    assert d.failure == DetectionFailure.PARTIAL, res.summary()
+    assert d.pixel is None
+    assert "partly hidden" in d.message
+    for k in (0, 2, 3):
+        assert res.leds[k].found
+        assert np.linalg.norm(res.leds[k].pixel - PIXELS[k]) < TOL_PX
+
+
 def test_led_outside_the_image_is_not_in_view(seq: SwitchingSequence) -> None:
     # At 6.6 m the top LED is above the image (v about -5), the others inside.
     pixels = mast_pixels(HEIGHTS, distance=6.6, lateral=0.3)

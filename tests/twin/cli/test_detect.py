@@ -115,3 +115,28 @@ def test_bad_inputs(tmp_path, capsys):
     for argv, message in cases:
         assert main(argv) == 2, argv
         assert message in capsys.readouterr().err, argv
+
+
+def test_detect_on_image_files_needs_no_opengl(tmp_path):
+    # Reading, detecting and writing the overlay use OpenCV only: no mujoco import.
+    import subprocess
+    import sys
+
+    frames = np.full((6, 40, 60, 3), 50, np.uint8)
+    paths = []
+    for i, f in enumerate(frames):
+        paths.append(tmp_path / f"f{i}.png")
+        cv2.imwrite(str(paths[-1]), f)
+    code = (
+        "import sys; from twin.cli import main; rc = main(sys.argv[1:]); "
+        "assert 'mujoco' not in sys.modules, 'mujoco was imported'; sys.exit(rc)"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code, "detect", *map(str, paths), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        env={"MUJOCO_GL": "osmesa", "PATH": ""},
+    )
+    # Nothing lit in these frames: the detector runs, finds nothing, says so (exit 3).
+    assert run.returncode == 3, run.stderr
+    assert (tmp_path / "o" / "overlay.png").exists()

@@ -153,3 +153,22 @@ def test_place_puts_a_robot_at_rest_and_resets_its_odometry():
     np.testing.assert_allclose(world.odometry["child2"].pose, pose, atol=1e-9)
     world.run(0.5)
     np.testing.assert_allclose(world.robot_pose("child2"), pose, atol=2e-3)
+
+
+def test_flicker_does_not_depend_on_the_noise_or_on_other_cameras():
+    sc = scenario("led_range")
+    lighting = sc.space.lighting.model_copy(update={"flicker": 0.05})
+    sc = sc.model_copy(update={"space": sc.space.model_copy(update={"lighting": lighting})})
+    quiet = sc.camera("near").sensor.model_copy(update={"noise": False})
+    runs = []
+    for noise, other_first in ((True, False), (False, False), (True, True)):
+        world = build_world(sc)
+        with CameraSimulator(world, seed=9) as sim:
+            if other_first:
+                sim.capture("far")
+            frames = sim.capture_sequence(
+                "near", "child1", ONE_AT_A_TIME, 0.0, None if noise else quiet
+            )
+        runs.append(([f.light_level for f in frames], frames[0].image))
+    assert runs[0][0] == runs[1][0] == runs[2][0]
+    np.testing.assert_array_equal(runs[0][1], runs[2][1])  # same noise for "near" too

@@ -42,20 +42,28 @@ def test_a_backend_whose_library_is_missing_is_an_error_naming_the_package():
     assert "libegl1 libgl1-mesa-dri" in str(info.value)
 
 
-def test_renderer_without_a_backend_says_what_to_install(monkeypatch):
+def test_a_renderer_that_cannot_start_says_what_to_install(monkeypatch):
     import mujoco
 
+    def no_context(*args, **kwargs):
+        raise RuntimeError("eglInitialize failed")
+
     model = mujoco.MjModel.from_xml_string("<mujoco/>")
+    monkeypatch.setattr(mujoco, "Renderer", no_context)
+    with pytest.raises(gl.RenderBackendError, match="eglInitialize failed") as info:
+        gl.make_renderer(model, 16, 16)
+    assert "apt-get install libegl1" in str(info.value)
+    # Without MUJOCO_GL (mujoco imported before twin.sim) the error says so.
     monkeypatch.setenv("MUJOCO_GL", "")
-    with pytest.raises(gl.RenderBackendError, match="apt-get install libegl1"):
+    with pytest.raises(gl.RenderBackendError, match=r"import twin\.sim before mujoco"):
         gl.make_renderer(model, 16, 16)
 
 
-def test_renderer_enlarges_the_offscreen_buffer():
+def test_a_large_renderer_does_not_enlarge_the_later_ones():
     import mujoco
 
     model = mujoco.MjModel.from_xml_string("<mujoco/>")
+    before = (model.vis.global_.offwidth, model.vis.global_.offheight)
     with gl.make_renderer(model, 900, 1300) as r:
         assert r.render().shape == (900, 1300, 3)
-    assert model.vis.global_.offwidth == 1300
-    assert model.vis.global_.offheight == 900
+    assert (model.vis.global_.offwidth, model.vis.global_.offheight) == before

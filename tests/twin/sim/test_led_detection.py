@@ -9,6 +9,7 @@ The images come from :mod:`twin.sim.capture` (lens, sensor); the detector is
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from calib.detection import DetectionFailure, SwitchingSequence, detect_leds
 from twin.scenario.schema import Obstacle, Person
@@ -69,8 +70,10 @@ def detection_errors(sequence, noise: bool):
                     distances.append(t.distance)
                     sigmas.append(d.sigma_px)
                 elif d.found:
-                    # Found although partly hidden or at the border: still its own LED.
-                    assert np.linalg.norm(d.pixel - t.pixel) < 1.5
+                    # Found although a sliver is hidden or it is near the border: the spot
+                    # is whole enough to pass the partial-occlusion test, so the centroid
+                    # can only be slightly off (a tenth hidden moves it 0.2 px).
+                    assert np.linalg.norm(d.pixel - t.pixel) < 0.5
     return np.array(errors), np.array(distances), np.array(sigmas)
 
 
@@ -90,6 +93,9 @@ def test_centroids_with_the_default_sensor_noise_are_within_0_3_px():
     errors, distances, _ = detection_errors(SwitchingSequence.binary(4), noise=True)
     assert distances.max() > 11.5
     assert rms(errors) <= 0.3
+    # Measured 0.05 px, as without noise: the bright LEDs leave the sensor noise little
+    # say. A regression to twice the noise-free limit would pass 0.3; this does not.
+    assert rms(errors) <= 0.1
 
 
 def test_reported_uncertainty_matches_the_scatter_over_repeated_captures():
@@ -132,51 +138,63 @@ def child_in_view(world, camera, distance=5.0, u=160.0):
     return xy
 
 
-def test_a_person_walking_through_the_view_makes_no_false_led():
+@pytest.mark.parametrize(
+    ("seq", "ahead", "start_offset", "crosses_leds"),
+    [
+        # 1.5 m in front of the child, crossing the view beside the LEDs.
+        (SwitchingSequence.one_at_a_time(4), 1.5, 1.0, False),
+        # 2 m behind the child, passing behind the LED column during the sequence.
+        (SwitchingSequence.binary(4), -2.0, 1.75, True),
+    ],
+    ids=["in_front_one_at_a_time", "behind_binary"],
+)
+def test_a_person_walking_through_the_view_makes_no_false_led(
+    seq, ahead, start_offset, crosses_leds
+):
     sc = scenario("led_range")
-    cam = sc.camera("far").tsai()
-    # A person in a light shirt crossing the view 1.5 m in front of the child, fast enough
-    # to be somewhere else in every frame of the sequence.
-    axis = cam.optical_axis[:2] / np.linalg.norm(cam.optical_axis[:2])
+    world0 = build_world(sc)
+    xy = child_in_view(world0, "far", distance=7.0)
+    cam = world0.camera("far")
+    # A person in a light shirt walking across the view at 2.5 m/s, somewhere else in
+    # every frame of the sequence.
+    axis = (cam.position[:2] - xy) / np.linalg.norm(cam.position[:2] - xy)
     side = np.array([-axis[1], axis[0]])
-    centre = cam.position[:2] + 6.5 * axis
+    centre = xy + ahead * axis
     walker = Person(
         name="walker",
         waypoints=(tuple(centre - 2.5 * side), tuple(centre + 2.5 * side)),
-        speed=1.8,
-        start_offset=1.0,
+        speed=2.5,
+        start_offset=start_offset,
+        shirt_rgb=(0.9, 0.9, 0.9),
     )
     world = build_world(sc.model_copy(update={"people": (walker,)}))
-    child_in_view(world, "far", distance=8.0)
-    seq = SwitchingSequence.one_at_a_time(4)
+    child_in_view(world, "far", distance=7.0)
     with CameraSimulator(world) as sim:
         frames = sim.capture_sequence("far", "child1", seq)
-    # The person is in view and moves between frames: the difference images have
-    # person-sized blobs.
-    on_screen = [
-        sc.camera("far").tsai().in_image(sc.camera("far").tsai().project([[*xy, 0.8]]))[0]
-        for f in frames
-        for _, xy in f.people
-    ]
-    assert sum(on_screen) >= 3
+    # The person is in view in most frames, each time somewhere else.
+    where = np.array([cam.project([[*p, 0.8]])[0] for f in frames for _, p in f.people])
+    assert cam.in_image(where).sum() >= 4
+    assert np.ptp(where[:, 0]) > 30
     found = detect_leds([f.image for f in frames], seq, led_line=LED_HEIGHTS)
-    assert found.rejected, "the person should have been seen and rejected"
+    assert found.changed_fraction > 0.01
     truth = frames[0].truth("child1")
     for d, t in zip(found.leds, truth, strict=True):
+        assert t.visible
         if d.found:
             assert np.linalg.norm(d.pixel - t.pixel) < 0.5, f"false LED {d.led}: {d.pixel}"
         else:
-            # Not found only where the person hid it or crossed it.
-            assert d.failure in (
-                DetectionFailure.OCCLUDED,
-                DetectionFailure.SCENE_CHANGED,
-                DetectionFailure.AMBIGUOUS,
-                DetectionFailure.NOT_FOUND,
-            )
-    assert found.found.sum() >= 2
+            # The LEDs are all in view and whole: only the moving person can have cost
+            # one, and that is what must be said.
+            assert d.failure == DetectionFailure.SCENE_CHANGED, d.message
+    if crosses_leds:
+        assert (~found.found).any()
+    else:
+        assert found.found.all()
+        assert found.rejected, "the person should have been seen and rejected"
 
 
-def test_a_dimming_light_makes_no_false_led_and_is_reported():
+@pytest.mark.parametrize("bits", [8, 12])
+def test_a_dimming_light_makes_no_false_led_and_is_reported(bits):
     sc = scenario("led_range")
     lighting = sc.space.lighting.model_copy(update={"drift_per_frame": -0.08})
     world = build_world(
@@ -184,8 +202,12 @@ def test_a_dimming_light_makes_no_false_led_and_is_reported():
     )
     child_in_view(world, "near", distance=4.0)
     seq = SwitchingSequence.binary(4)
+    # A 12-bit sensor delivers uint16 frames with the top bits empty: the detector infers
+    # the full scale from them.
+    sensor = sc.camera("near").sensor.model_copy(update={"bits": bits})
     with CameraSimulator(world) as sim:
-        frames = sim.capture_sequence("near", "child1", seq)
+        frames = sim.capture_sequence("near", "child1", seq, sensor=sensor)
+    assert frames[0].image.dtype == (np.uint8 if bits == 8 else np.uint16)
     levels = np.array([f.light_level for f in frames])
     assert levels[-1] < 0.7  # the light lost a third of its level during the capture
     found = detect_leds([f.image for f in frames], seq, led_line=LED_HEIGHTS)
@@ -202,28 +224,39 @@ def test_a_dimming_light_makes_no_false_led_and_is_reported():
             assert np.linalg.norm(d.pixel - t.pixel) < 0.5
 
 
-def test_an_led_hidden_behind_an_obstacle_is_reported_occluded():
+@pytest.mark.parametrize(
+    ("height", "failure"), [(0.55, DetectionFailure.OCCLUDED), (0.43, DetectionFailure.PARTIAL)]
+)
+def test_an_led_hidden_behind_an_obstacle_is_reported_occluded_or_partial(height, failure):
     sc = scenario("led_range")
     world0 = build_world(sc)
     xy = child_in_view(world0, "far", distance=7.0)
     cam = world0.camera("far").position[:2]
-    # A crate just in front of the child, 0.55 m high: it hides the lowest LED only.
+    # A crate just in front of the child: 0.55 m high, it hides the lowest LED; 0.43 m
+    # high, two thirds of it (whose centroid would then be 1.3 px off).
     toward = (cam - xy) / np.linalg.norm(cam - xy)
-    crate = Obstacle(name="crate", center=tuple(xy + 0.42 * toward), size=(0.3, 0.8, 0.55))
-    crate = crate.model_copy(
-        update={"yaw_deg": float(np.degrees(np.arctan2(toward[1], toward[0])))}
+    yaw = float(np.arctan2(toward[1], toward[0]))
+    crate = Obstacle(
+        name="crate",
+        center=tuple(xy + 0.42 * toward),
+        size=(0.3, 0.8, height),
+        yaw_deg=float(np.degrees(yaw)),
     )
     space = sc.space.model_copy(update={"obstacles": (crate,)})
     world = build_world(sc.model_copy(update={"space": space}))
-    world.place("child1", xy, float(np.arctan2(toward[1], toward[0])))
+    world.place("child1", xy, yaw)
     seq = SwitchingSequence.one_at_a_time(4)
     with CameraSimulator(world) as sim:
         frames = sim.capture_sequence("far", "child1", seq)
     truth = frames[0].truth("child1")
     assert [t.in_image for t in truth] == [True] * 4
-    assert [t.visible_fraction for t in truth] == [0.0, 1.0, 1.0, 1.0]
+    assert [t.visible_fraction for t in truth[1:]] == [1.0, 1.0, 1.0]
+    if failure == DetectionFailure.OCCLUDED:
+        assert truth[0].visible_fraction == 0.0
+    else:
+        assert 0.0 < truth[0].visible_fraction < 0.5
     found = detect_leds([f.image for f in frames], seq, led_line=LED_HEIGHTS)
-    assert found.leds[0].failure == DetectionFailure.OCCLUDED
+    assert found.leds[0].failure == failure, found.summary()
     assert found.leds[0].pixel is None
     for k in (1, 2, 3):
         assert found.leds[k].found

@@ -11,6 +11,7 @@ import pytest
 
 from calib.camera import TsaiCamera
 from calib.opencv_camera import OpenCVCamera
+from twin.scenario.schema import CameraConfig
 from twin.sim.lens import lens_warp
 
 SIZE = (320, 240)
@@ -133,3 +134,21 @@ def test_bad_arguments():
         lens_warp(tsai(0.0), 0)
     with pytest.raises(ValueError, match="expected a 320x240 render"):
         lens_warp(tsai(0.0), 1).apply(np.zeros((10, 10, 3), dtype=np.uint8))
+
+
+def test_the_scenario_and_the_renderer_refuse_a_folding_lens():
+    with pytest.raises(ValueError, match="folds the image"):
+        lens_warp(tsai(-1e-5))
+    args = {
+        "name": "c",
+        "position": (0.0, 0.0, 2.0),
+        "view_direction": (1.0, 0.0, -0.3),
+        "f": 770.0,
+        "cx": 160.0,
+        "cy": 120.0,
+        "image_size": (320, 240),
+    }
+    with pytest.raises(ValueError, match="folds the image"):
+        CameraConfig(kappa1=-1e-5, **args)
+    with pytest.raises(ValueError, match="not invertible"):
+        CameraConfig(opencv_distortion=(-60.0, 0.0, 0.0, 0.0), **args)
