@@ -69,13 +69,17 @@ class DetectorConfig:
             allows the bending of a line by lens distortion near the image corners.
         partial_roundness: a found spot of at least ``partial_min_area_px`` and SNR of at
             least ``partial_min_snr`` whose roundness (smaller over larger principal second
-            moment) is below this is PARTIAL: partly hidden. 0.7: whole LEDs rendered by
-            the twin at 3 to 12 m measure 0.95 or more; an LED with a third of it hidden by
-            a crate measures 0.58 (its centroid 0.6 px off), one with a tenth hidden 0.81
-            (0.2 px off, accepted).
+            moment) is below this (scaled down by area / ``partial_full_area_px`` for
+            smaller spots) is PARTIAL: partly hidden. 0.7: whole LEDs rendered by the twin
+            at 6 to 12 m measure at least 0.81 when 30 px or larger and 0.68 at 20-30 px
+            (the pixel grid); an LED with a third hidden by a crate measures 0.58 at 34 px
+            (its centroid 0.6 px off), two thirds hidden 0.44 at 24 px (1.3 px off), a
+            tenth hidden 0.81 (0.2 px off, accepted).
         partial_min_area_px: smallest spot whose roundness is judged, and smallest median
             area of the other LEDs for the area test, px. 20: below that the pixel grid and
             the noise alone make discs look elongated or small.
+        partial_full_area_px: spots of this area and more are held to the full
+            ``partial_roundness``; smaller ones to a proportionally lower one. 30.
         partial_min_snr: smallest SNR of a spot whose roundness is judged. 30: a dim 12 px
             spot at SNR 20 can measure 0.64 from noise alone.
         partial_area_ratio: a found spot smaller than this fraction of the median area of
@@ -103,6 +107,7 @@ class DetectorConfig:
     line_tolerance_px: float = 3.0
     partial_roundness: float = 0.7
     partial_min_area_px: int = 20
+    partial_full_area_px: int = 30
     partial_min_snr: float = 30.0
     partial_area_ratio: float = 0.6
 
@@ -127,7 +132,12 @@ class DetectorConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and 0 <= value <= 1):
                 raise ValueError(f"DetectorConfig.{name} must lie in [0, 1], got {value!r}")
-        for name in ("max_area_px", "min_change_area_px", "partial_min_area_px"):
+        for name in (
+            "max_area_px",
+            "min_change_area_px",
+            "partial_min_area_px",
+            "partial_full_area_px",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise ValueError(f"DetectorConfig.{name} must be a positive integer, got {value!r}")
