@@ -1,0 +1,90 @@
+"""A :class:`LedSensor` made of a camera and the children's LEDs: the paper's on/off
+image subtraction (:func:`calib.detection.detect_leds`). The same for a rendered camera
+and a real one."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from calib.detection import DetectorConfig, detect_leds
+from calib.detection.sequence import SwitchingSequence
+from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds
+from twin.hal.readings import LedObservation
+
+
+class ImageLedSensor(LedSensor):
+    """Switch a child's LEDs frame by frame, capture each frame, find the LEDs.
+
+    Args:
+        camera: the camera.
+        leds: each child's LEDs, by child name.
+        clock: the rig's clock (for the time between frames).
+        frame_interval: time to wait between frames, s.
+        config: the detector's settings.
+        led_line: optional (N_led,) LED heights on their mast, m (lets the detector tell an
+            occluded LED from one out of view).
+    """
+
+    def __init__(
+        self,
+        camera: Camera,
+        leds: Mapping[str, MarkerLeds],
+        clock: Clock,
+        *,
+        frame_interval: float = 0.0,
+        config: DetectorConfig | None = None,
+        led_line: Sequence[float] | None = None,
+    ) -> None:
+        self._camera = camera
+        self._leds = dict(leds)
+        self._clock = clock
+        self._interval = float(frame_interval)
+        self._config = config if config is not None else DetectorConfig()
+        self._line = None if led_line is None else np.asarray(led_line, dtype=float)
+
+    @property
+    def camera(self) -> str:
+        return self._camera.name
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        return self._camera.image_size
+
+    def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
+        if child not in self._leds:
+            raise ValueError(f"no LEDs for child {child!r}; known: {sorted(self._leds)}")
+        leds = self._leds[child]
+        frames = []
+        try:
+            for k, row in enumerate(sequence.pattern):
+                leds.switch([bool(b) for b in row])
+                frames.append(self._camera.capture().image)
+                if self._interval > 0 and k + 1 < len(sequence.pattern):
+                    self._clock.sleep(self._interval)
+        finally:
+            leds.switch([False] * leds.count)
+        found = detect_leds(frames, sequence, config=self._config, led_line=self._line)
+        pixels = np.full((leds.count, 2), np.nan)
+        sigma = np.full(leds.count, np.nan)
+        failures: list[str | None] = []
+        for d in found.leds:
+            if d.pixel is not None:
+                pixels[d.led] = d.pixel
+                sigma[d.led] = d.sigma_px
+                failures.append(None)
+            else:
+                failures.append(d.failure.value if d.failure is not None else "not_found")
+        return LedObservation(
+            camera=self.camera,
+            child=child,
+            timestamp=self._clock.now(),
+            pixels=pixels,
+            sigma_px=sigma,
+            failures=tuple(failures),
+            frames=len(frames),
+        )
+
+    def close(self) -> None:
+        """The camera and LEDs belong to the rig, which closes them."""
