@@ -65,6 +65,41 @@ def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
     issues += _check_route(sc)
     issues += _check_visits(sc)
     issues += _check_people(sc)
+    issues += _check_campaign(sc)
+    return issues
+
+
+def _check_campaign(sc: Scenario) -> list[ScenarioIssue]:
+    issues = []
+    names = [c.name for c in sc.cameras]
+    for i, name in enumerate(sc.campaign.reference_cameras or ()):
+        if name not in names:
+            issues.append(
+                ScenarioIssue(
+                    f"campaign.reference_cameras[{i}]",
+                    "unknown camera",
+                    name,
+                    f"one of {', '.join(names)}",
+                )
+            )
+    if sc.campaign.min_points > sc.campaign.station_points:
+        issues.append(
+            ScenarioIssue(
+                "campaign.min_points",
+                f"more than the {sc.campaign.station_points} points a station gathers",
+                sc.campaign.min_points,
+                "at most campaign.station_points",
+            )
+        )
+    if len(sc.robots.children) < 2:
+        issues.append(
+            ScenarioIssue(
+                "robots.children",
+                "CPS needs two children (one moves while the other stays)",
+                len(sc.robots.children),
+                "at least 2 children",
+            )
+        )
     return issues
 
 

@@ -420,12 +420,36 @@ OdometryConfig = _model_from_dataclass(
 )
 
 
+class StoppingConfig(Frozen):
+    """How far from its goal a robot stops (the geometric fidelity's placement error; the
+    render fidelity's robots stop where their controller and odometry leave them).
+
+    Attributes:
+        sigma_xy: standard deviation of the stop position on each horizontal axis, m.
+        sigma_yaw: standard deviation of the stop heading, rad.
+    """
+
+    sigma_xy: Annotated[float, Field(ge=0.0, le=1.0)] = 0.02
+    sigma_yaw: Annotated[float, Field(ge=0.0, le=0.5)] = 0.017
+
+
 class Noise(Frozen):
-    """Instrument noise; every field defaults to the paper's numbers."""
+    """Noise of the instruments, the robots and the LED detection.
+
+    Attributes:
+        total_station, inclinometer, odometry: the instruments (paper's Table I defaults).
+        stopping: the robots' stopping error (geometric fidelity).
+        led_detection_px: standard deviation of each coordinate of a detected LED, px, at
+            the geometric fidelity (which projects LEDs instead of rendering them). The
+            default is what the render fidelity's detector achieves on the twin's 320 x 240
+            images (0.05 px RMS per coordinate, measured over 3-14 m).
+    """
 
     total_station: TotalStationConfig = TotalStationConfig()  # type: ignore[valid-type]
     inclinometer: InclinometerConfig = InclinometerConfig()  # type: ignore[valid-type]
     odometry: OdometryConfig = OdometryConfig()  # type: ignore[valid-type]
+    stopping: StoppingConfig = StoppingConfig()
+    led_detection_px: Annotated[float, Field(ge=0.0, le=10.0)] = 0.05
 
 
 # -- route and calibration plan --------------------------------------------------------------
@@ -480,6 +504,69 @@ class Calibration(Frozen):
 
     visits: tuple[CalibrationVisit, ...] = Field(min_length=1)
     min_visible_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
+
+
+class Formation(Frozen):
+    """Where the children stop relative to the parent's next station during CPS travel.
+
+    Both children stand ahead of the station along the route, the nearer ``near_gap`` and
+    the farther ``near_gap + spacing`` metres on, offset sideways by ``lateral`` (the nearer
+    to one side, the farther to the other) so that neither hides the other's prisms. Where
+    a position is not free, the planner tries smaller and mirrored offsets.
+
+    Attributes:
+        step: the parent's advance per CPS step, m.
+        near_gap, spacing, lateral: m.
+    """
+
+    step: Annotated[float, Field(gt=0.5, le=50.0)] = 5.0
+    near_gap: Annotated[float, Field(gt=1.3, le=50.0)] = 2.5
+    spacing: Annotated[float, Field(gt=0.5, le=50.0)] = 2.5
+    lateral: Annotated[float, Field(ge=0.0, le=5.0)] = 0.7
+
+
+class Campaign(Frozen):
+    """How the calibration campaign runs (paper Section IV).
+
+    Attributes:
+        reference_cameras: cameras for which reference data sets are taken from the
+            parent's first station; None: every camera whose floor view the first station
+            sees (at least ``calibration.min_visible_fraction`` of it).
+        reference_points: LED points in each reference data set (paper: 70).
+        station_points: LED points gathered at each calibration station.
+        min_points: fewest points a station must yield for the camera to be calibrated.
+        formation: the children's places during CPS travel.
+        led_sequence: LED switching sequence, ``binary`` (6 frames for 4 LEDs) or
+            ``one_at_a_time`` (6 frames).
+        lock_retries: further aims after a lost prism lock before a shot is given up.
+        pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2.
+    """
+
+    reference_cameras: tuple[Name, ...] | None = None
+    reference_points: Annotated[int, Field(ge=8, le=1000)] = 70
+    station_points: Annotated[int, Field(ge=8, le=1000)] = 70
+    min_points: Annotated[int, Field(ge=8, le=1000)] = 24
+    formation: Formation = Formation()
+    led_sequence: Literal["binary", "one_at_a_time"] = "binary"
+    lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
+    pixel_size_mm: Annotated[float, Field(gt=0.0, le=0.1)] = 0.015
+
+
+class Faults(Frozen):
+    """Faults injected into the simulated devices, to see a run cope with them.
+
+    Attributes:
+        lost_lock_rate: probability that the total station's automatic aim fails to lock
+            a prism it could see (the shot fails as if no prism were in the cone).
+        hidden_led_rate: probability that an LED stays dark during one observation (as if
+            something hid it from the camera).
+        unreachable: (x, y) goals, m, that no robot can reach: a drive to within 0.5 m of
+            one stops short, blocked.
+    """
+
+    lost_lock_rate: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    hidden_led_rate: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    unreachable: tuple[Vec2, ...] = ()
 
 
 class Person(Frozen):
@@ -539,6 +626,8 @@ class Scenario(Frozen):
         seed: root seed of every random generator of a run.
         space, cameras, robots, marker, noise, route, calibration, sim: the sections.
         people: people walking through the space (distractors), none by default.
+        campaign: how the calibration campaign runs.
+        faults: faults injected into the simulated devices (none by default).
         source: the file it was loaded from (set by the loader).
     """
 
@@ -554,7 +643,36 @@ class Scenario(Frozen):
     calibration: Calibration
     sim: SimConfig = SimConfig()
     people: tuple[Person, ...] = ()
+    campaign: Campaign = Campaign()
+    faults: Faults = Faults()
     source: str = ""
+
+    def without_noise(self) -> Scenario:
+        """The same scenario with every noise source off: a perfect total station (no noise,
+        no output rounding) and inclinometer, exact odometry, exact stops, exact LED
+        detection at the geometric fidelity, and cameras without sensor noise."""
+        ts = dataclasses.replace(
+            TotalStationSpec.noiseless(),
+            range_min=self.noise.total_station.range_min,
+            range_max=self.noise.total_station.range_max,
+            aim_cone=self.noise.total_station.aim_cone,
+        )
+        noise = Noise(
+            total_station=TotalStationConfig(**dataclasses.asdict(ts)),
+            inclinometer=InclinometerConfig(
+                sigma=0.0, working_range=self.noise.inclinometer.working_range
+            ),
+            odometry=OdometryConfig(
+                wheel_scale_sigma=0.0, track_sigma=0.0, distance_noise=0.0, heading_noise=0.0
+            ),
+            stopping=StoppingConfig(sigma_xy=0.0, sigma_yaw=0.0),
+            led_detection_px=0.0,
+        )
+        cameras = tuple(
+            c.model_copy(update={"sensor": c.sensor.model_copy(update={"noise": False})})
+            for c in self.cameras
+        )
+        return self.model_copy(update={"noise": noise, "cameras": cameras})
 
     def camera(self, name: str) -> CameraConfig:
         """The camera called ``name``; KeyError naming the known cameras otherwise."""

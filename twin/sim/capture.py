@@ -136,11 +136,7 @@ class CameraSimulator(Closing):
         }
         self.renderer = CameraRenderer(world)
         self._warps: dict[tuple[str, int], LensWarp] = {}
-        self._led_radius = {}
-        for child in world.scenario.robots.children:
-            for k in range(N_LEDS):
-                g = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_GEOM, f"{child.name}/led{k}")
-                self._led_radius[(child.name, k)] = float(world.model.geom_size[g][0])
+        self._led_radius = led_radii(world)
 
     def warp(self, camera: str, supersample: int | None = None) -> LensWarp:
         """The lens remap of a camera (cached), at the sensor's or the given supersampling."""
@@ -243,36 +239,46 @@ class CameraSimulator(Closing):
                         position=p,
                         pixel=pixels[k],
                         in_image=bool(inside[k]),
-                        visible_fraction=self._visible_fraction(origin, p, radius),
+                        visible_fraction=led_visible_fraction(self.world, origin, p, radius),
                         lit=lit[k],
                         distance=float(np.linalg.norm(p - origin)),
                     )
                 )
         return tuple(out)
 
-    def _visible_fraction(
-        self, origin: NDArray[np.float64], centre: NDArray[np.float64], radius: float
-    ) -> float:
-        """Share of the centre and outline points of an LED seen from ``origin``."""
-        view = centre - origin
-        view /= np.linalg.norm(view)
-        a = np.cross(view, [0.0, 0.0, 1.0])
-        if np.linalg.norm(a) < 1e-9:
-            a = np.cross(view, [1.0, 0.0, 0.0])
-        a /= np.linalg.norm(a)
-        b = np.cross(view, a)
-        angles = 2.0 * np.pi * np.arange(OUTLINE_POINTS) / OUTLINE_POINTS
-        ring = (
-            OUTLINE_FRACTION * radius * (np.outer(np.cos(angles), a) + np.outer(np.sin(angles), b))
-        )
-        points = np.vstack([centre, centre + ring])
-        # Anything within the LED's own radius of the target point is the LED itself.
-        seen = [self.world.line_of_sight(origin, q, tolerance=1.25 * radius) for q in points]
-        return float(np.mean(seen))
-
     def close(self) -> None:
         """Free the rendering contexts."""
         self.renderer.close()
+
+
+def led_radii(world: World) -> dict[tuple[str, int], float]:
+    """Radius of every LED's geom, m, by (child, LED index)."""
+    out = {}
+    for child in world.scenario.robots.children:
+        for k in range(N_LEDS):
+            g = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_GEOM, f"{child.name}/led{k}")
+            out[(child.name, k)] = float(world.model.geom_size[g][0])
+    return out
+
+
+def led_visible_fraction(
+    world: World, origin: NDArray[np.float64], centre: NDArray[np.float64], radius: float
+) -> float:
+    """Share of an LED seen from ``origin``: its centre and ``OUTLINE_POINTS`` points on a
+    ring of ``OUTLINE_FRACTION`` times its ``radius`` (m), each by a MuJoCo ray cast."""
+    view = centre - origin
+    view = view / np.linalg.norm(view)
+    a = np.cross(view, [0.0, 0.0, 1.0])
+    if np.linalg.norm(a) < 1e-9:
+        a = np.cross(view, [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(view, a)
+    angles = 2.0 * np.pi * np.arange(OUTLINE_POINTS) / OUTLINE_POINTS
+    ring = OUTLINE_FRACTION * radius * (np.outer(np.cos(angles), a) + np.outer(np.sin(angles), b))
+    points = np.vstack([centre, centre + ring])
+    # Anything within the LED's own radius of the target point is the LED itself.
+    seen = [world.line_of_sight(origin, q, tolerance=1.25 * radius) for q in points]
+    return float(np.mean(seen))
 
 
 def project_or_nan(camera: TsaiCamera | OpenCVCamera, points: ArrayLike) -> NDArray[np.float64]:

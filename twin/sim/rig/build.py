@@ -1,0 +1,147 @@
+"""Build a simulated rig on a world: the one place where a fidelity is chosen."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from twin.hal.devices import MobileBase
+from twin.hal.rig import Rig
+from twin.sim.capture import CameraSimulator
+from twin.sim.rig.base import GeometricBase, RenderBase
+from twin.sim.rig.clock import SimClock
+from twin.sim.rig.frames import WorldFrame
+from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
+from twin.sim.rig.total_station import SimTotalStation
+from twin.sim.scene import World
+
+FIDELITIES = ("render", "geometric")
+"""``render``: robots driven in MuJoCo, rendered images, LEDs found by subtraction.
+``geometric``: robots placed with a stopping error, LEDs projected with detection noise."""
+
+RIG_STREAM = 3
+"""Spawn key of the rig's random streams (the world uses 1, the camera sensors 2)."""
+
+
+@dataclass
+class SimRig:
+    """A simulated rig and what only the simulation knows.
+
+    Attributes:
+        rig: the devices, as the campaign sees them.
+        world: the MuJoCo world. frame: W in MuJoCo's frame (set at the parent's start).
+        fidelity: ``render`` or ``geometric``.
+        simulator: the camera renderer (render fidelity), closed with :meth:`close`.
+    """
+
+    rig: Rig
+    world: World
+    frame: WorldFrame
+    fidelity: str
+    simulator: CameraSimulator | None = None
+    extra: dict[str, object] = field(default_factory=dict)
+
+    def close(self) -> None:
+        """Close the devices and the renderer."""
+        self.rig.close()
+        if self.simulator is not None:
+            self.simulator.close()
+
+
+def build_sim_rig(world: World, fidelity: str, seed: int | None = None) -> SimRig:
+    """The devices of ``world``'s scenario at ``fidelity``.
+
+    Args:
+        world: a world at its start state (the parent's first station defines W).
+        fidelity: ``render`` or ``geometric``.
+        seed: root of the rig's random streams (default the scenario's seed). The instrument,
+            each robot's stopping error, the LED detection and the injected faults have
+            their own streams, so switching one off changes nothing else.
+    """
+    if fidelity not in FIDELITIES:
+        raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+    sc = world.scenario
+    root = sc.seed if seed is None else int(seed)
+    names = [r.name for r in sc.robots.all]
+    cams = [c.name for c in sc.cameras]
+    streams = np.random.SeedSequence(root, spawn_key=(RIG_STREAM,)).spawn(
+        3 + len(names) + len(cams)
+    )
+    rng = [np.random.default_rng(s) for s in streams]
+    ts_rng, fault_rng, fault_led_rng = rng[0], rng[1], rng[2]
+    base_rng = dict(zip(names, rng[3 : 3 + len(names)], strict=True))
+    led_rng = dict(zip(cams, rng[3 + len(names) :], strict=True))
+
+    parent = sc.robots.parent.name
+    position, rotation = world.instrument_pose(parent)
+    frame = WorldFrame.from_instrument(position, rotation)
+    timings: dict[str, float] = {}
+    render = fidelity == "render"
+    clock = SimClock(world, physics=render, timings=timings)
+    faults = sc.faults
+    total_station = SimTotalStation(
+        world,
+        parent,
+        sc.noise.total_station.spec(),
+        sc.noise.inclinometer.spec(),
+        ts_rng,
+        clock,
+        lost_lock_rate=faults.lost_lock_rate,
+        fault_rng=fault_rng,
+    )
+    bases: dict[str, MobileBase] = {}
+    for name in names:
+        if render:
+            bases[name] = RenderBase(world, name, frame, clock, timings, faults.unreachable)
+        else:
+            bases[name] = GeometricBase(
+                world,
+                name,
+                frame,
+                clock,
+                sc.noise.stopping,
+                base_rng[name],
+                timings,
+                faults.unreachable,
+            )
+    leds = {c.name: SimLeds(world, c.name, clock) for c in sc.robots.children}
+    simulator = None
+    cameras = {}
+    sensors = {}
+    led_line = [float(p[2]) for p in sc.marker.leds]
+    if render:
+        simulator = CameraSimulator(world, seed=root)
+        for cam in cams:
+            cameras[cam] = SimCamera(simulator, cam, clock, timings)
+            sensors[cam] = RenderLedSensor(
+                cameras[cam],
+                leds,
+                clock,
+                timings,
+                led_line,
+                hidden_led_rate=faults.hidden_led_rate,
+                fault_rng=fault_led_rng,
+            )
+    else:
+        for cam in cams:
+            sensors[cam] = GeometricLedSensor(
+                world,
+                cam,
+                clock,
+                sc.noise.led_detection_px,
+                led_rng[cam],
+                hidden_led_rate=faults.hidden_led_rate,
+                fault_rng=fault_led_rng,
+            )
+    rig = Rig(
+        clock=clock,
+        total_station=total_station,
+        parent=bases[parent],
+        children={c.name: bases[c.name] for c in sc.robots.children},
+        leds=leds,
+        led_sensors=sensors,
+        cameras=cameras,
+        timings=timings,
+    )
+    return SimRig(rig=rig, world=world, frame=frame, fidelity=fidelity, simulator=simulator)

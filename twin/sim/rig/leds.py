@@ -1,0 +1,222 @@
+"""The children's LEDs and the cameras' view of them, at both fidelities."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from calib.camera import TsaiCamera
+from calib.detection import DetectionFailure
+from calib.detection.sequence import SwitchingSequence
+from calib.opencv_camera import OpenCVCamera
+from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds
+from twin.hal.led_sensing import ImageLedSensor
+from twin.hal.readings import CameraImage, LedObservation, LedSwitch
+from twin.sim.capture import (
+    FRAME_INTERVAL,
+    CameraSimulator,
+    in_image,
+    led_radii,
+    led_visible_fraction,
+    project_or_nan,
+)
+from twin.sim.rig.timing import timed
+from twin.sim.robots import N_LEDS
+from twin.sim.scene import World
+
+
+class SimLeds(MarkerLeds):
+    """A child's LEDs: switching changes their material in the world.
+
+    ``hidden`` LEDs stay dark whatever they are switched to (an injected fault).
+    """
+
+    def __init__(self, world: World, child: str, clock: Clock) -> None:
+        self.world = world
+        self._child = child
+        self.clock = clock
+        self.hidden: frozenset[int] = frozenset()
+
+    @property
+    def child(self) -> str:
+        return self._child
+
+    @property
+    def count(self) -> int:
+        return N_LEDS
+
+    def switch(self, on: Sequence[bool]) -> LedSwitch:
+        flags = tuple(bool(f) for f in on)
+        if len(flags) != N_LEDS:
+            raise ValueError(f"give {N_LEDS} flags, got {len(flags)}")
+        self.world.set_leds(self._child, [f and k not in self.hidden for k, f in enumerate(flags)])
+        return LedSwitch(self._child, self.clock.now(), flags)
+
+    def close(self) -> None:
+        self.world.set_leds(self._child, False)
+
+
+class SimCamera(Camera):
+    """A rendered camera (lens, sensor noise) of the world."""
+
+    def __init__(
+        self, simulator: CameraSimulator, name: str, clock: Clock, timings: dict[str, float]
+    ) -> None:
+        self.simulator = simulator
+        self._name = name
+        self.clock = clock
+        self.timings = timings
+
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        w, h = self.simulator.world.scenario.camera(self._name).image_size
+        return (w, h)
+
+    def capture(self) -> CameraImage:
+        with timed(self.timings, "render"):
+            frame = self.simulator.capture(self._name)
+        return CameraImage(self._name, self.clock.now(), frame.image)
+
+    def close(self) -> None:
+        """The simulator belongs to the rig's builder, which closes it."""
+
+
+def _focal(camera: TsaiCamera | OpenCVCamera) -> float:
+    return camera.f if isinstance(camera, TsaiCamera) else camera.fx
+
+
+def _draw_hidden(rate: float, rng: np.random.Generator) -> frozenset[int]:
+    if rate <= 0:
+        return frozenset()
+    return frozenset(int(k) for k in np.flatnonzero(rng.random(N_LEDS) < rate))
+
+
+class RenderLedSensor(ImageLedSensor):
+    """:class:`ImageLedSensor` on a rendered camera, with injected hidden LEDs."""
+
+    def __init__(
+        self,
+        camera: SimCamera,
+        leds: dict[str, SimLeds],
+        clock: Clock,
+        timings: dict[str, float],
+        led_line: Sequence[float],
+        hidden_led_rate: float = 0.0,
+        fault_rng: np.random.Generator | None = None,
+    ) -> None:
+        super().__init__(camera, leds, clock, frame_interval=FRAME_INTERVAL, led_line=led_line)
+        self.sim_leds = leds
+        self.timings = timings
+        self.hidden_led_rate = hidden_led_rate
+        self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
+
+    def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
+        leds = self.sim_leds[child]
+        leds.hidden = _draw_hidden(self.hidden_led_rate, self.fault_rng)
+        try:
+            with timed(self.timings, "observe"):
+                return super().observe(child, sequence)
+        finally:
+            leds.hidden = frozenset()
+
+
+class GeometricLedSensor(LedSensor):
+    """LEDs projected through the true camera, with the detection noise of the render
+    fidelity (geometric fidelity).
+
+    An LED is found when it is inside the image by more than its own image radius and
+    wholly visible from the camera (MuJoCo ray casts to its centre and outline); partly
+    hidden it is ``partial``, wholly hidden ``occluded``, outside ``not_in_view``: the
+    render fidelity's detector reports the same cases.
+
+    Args:
+        world: the world. camera: the camera's name.
+        clock: the rig's clock (advanced by the sequence's duration).
+        sigma_px: detection noise, px per coordinate. rng: its random generator.
+        hidden_led_rate: probability that an LED is hidden (injected fault).
+        fault_rng: random generator of the faults.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        camera: str,
+        clock: Clock,
+        sigma_px: float,
+        rng: np.random.Generator,
+        hidden_led_rate: float = 0.0,
+        fault_rng: np.random.Generator | None = None,
+    ) -> None:
+        self.world = world
+        self._camera = camera
+        self.clock = clock
+        self.sigma_px = float(sigma_px)
+        self.rng = rng
+        self.hidden_led_rate = hidden_led_rate
+        self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
+        self._radius = led_radii(world)
+        self._model = world.camera(camera)
+
+    @property
+    def camera(self) -> str:
+        return self._camera
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        w, h = self._model.image_size
+        return (w, h)
+
+    def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
+        if child not in {c.name for c in self.world.scenario.robots.children}:
+            raise ValueError(f"no child {child!r}")
+        cam = self._model
+        _, leds = self.world.marker_points(child)
+        pixels = project_or_nan(cam, leds)
+        origin = cam.position
+        hidden = _draw_hidden(self.hidden_led_rate, self.fault_rng)
+        out = np.full((N_LEDS, 2), np.nan)
+        sigma = np.full(N_LEDS, np.nan)
+        failures: list[str | None] = []
+        for k in range(N_LEDS):
+            radius = self._radius[(child, k)]
+            distance = float(np.linalg.norm(leds[k] - origin))
+            margin = _focal(cam) * radius / distance
+            w, h = cam.image_size
+            inside = in_image(pixels[k : k + 1], cam.image_size)[0] and (
+                margin - 0.5 <= pixels[k, 0] <= w - 0.5 - margin
+                and margin - 0.5 <= pixels[k, 1] <= h - 0.5 - margin
+            )
+            if not inside:
+                failures.append(DetectionFailure.NOT_IN_VIEW.value)
+                continue
+            if k in hidden:
+                failures.append(DetectionFailure.OCCLUDED.value)
+                continue
+            seen = led_visible_fraction(self.world, origin, leds[k], radius)
+            if seen < 1.0:
+                failures.append(
+                    DetectionFailure.OCCLUDED.value if seen == 0 else DetectionFailure.PARTIAL.value
+                )
+                continue
+            out[k] = pixels[k] + self.sigma_px * self.rng.standard_normal(2)
+            sigma[k] = self.sigma_px
+            failures.append(None)
+        if hasattr(self.clock, "pass_time"):
+            self.clock.pass_time(len(sequence.pattern) * FRAME_INTERVAL)
+        return LedObservation(
+            camera=self._camera,
+            child=child,
+            timestamp=self.clock.now(),
+            pixels=out,
+            sigma_px=sigma,
+            failures=tuple(failures),
+            frames=0,
+        )
+
+    def close(self) -> None:
+        """Nothing to release."""
