@@ -195,7 +195,14 @@ class World:
             move_people(self.model, self.data, self.scenario.people, self.scenario.space.floor_z)
             mujoco.mj_kinematics(self.model, self.data)
 
-    def place(self, robot: str, xy: ArrayLike, yaw: float = 0.0, settle: float = 0.1) -> None:
+    def place(
+        self,
+        robot: str,
+        xy: ArrayLike,
+        yaw: float = 0.0,
+        settle: float = 0.1,
+        hold_others: bool = False,
+    ) -> None:
         """Put a robot at a pose on the floor at once (no driving), at rest.
 
         Odometry is reset to the new pose, a running drive is cancelled, and the world is
@@ -206,6 +213,8 @@ class World:
             xy: (2,) position of the body origin, m.
             yaw: heading, rad.
             settle: simulated seconds to step afterwards (0: none).
+            hold_others: put the other robots back exactly where they were after the
+                settling (their resting pose does not creep by micrometres).
         """
         h = self.robots[robot]
         p = np.asarray(xy, dtype=float).reshape(2)
@@ -216,8 +225,18 @@ class World:
         q[h.qpos + 3 : h.qpos + 7] = [np.cos(0.5 * yaw), 0.0, 0.0, np.sin(0.5 * yaw)]
         self.data.qvel[h.qvel : h.qvel + 6] = 0.0
         mujoco.mj_forward(self.model, self.data)
+        held = [
+            (o, self.data.qpos[o.qpos : o.qpos + 7].copy())
+            for o in self.robots.values()
+            if hold_others and o.name != robot
+        ]
         if settle > 0:
             self.run(settle)
+        if held:
+            for o, qpos in held:
+                self.data.qpos[o.qpos : o.qpos + 7] = qpos
+                self.data.qvel[o.qvel : o.qvel + 6] = 0.0
+            mujoco.mj_forward(self.model, self.data)
         self.odometry[robot].reset(h.pose(self.data))
         self._wheels[robot] = h.wheel_angles(self.data)
 

@@ -220,7 +220,7 @@ class GeometricBase(_SimBase):
         truth[2] += self.stopping.sigma_yaw * self.rng.standard_normal()
         mj = self.frame.pose_to_mujoco(truth)
         with timed(self.timings, "physics"):
-            self.world.place(self._name, mj[:2], float(mj[2]))
+            self.world.place(self._name, mj[:2], float(mj[2]), hold_others=True)
         if hasattr(self.clock, "pass_time"):
             self.clock.pass_time(travel / self.world.robots[self._name].platform.max_speed)
         self._belief = believed

@@ -13,12 +13,16 @@ from twin.sim.rig.base import GeometricBase, RenderBase
 from twin.sim.rig.clock import SimClock
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
+from twin.sim.rig.timing import timed
 from twin.sim.rig.total_station import SimTotalStation
 from twin.sim.scene import World
 
 FIDELITIES = ("render", "geometric")
 """``render``: robots driven in MuJoCo, rendered images, LEDs found by subtraction.
 ``geometric``: robots placed with a stopping error, LEDs projected with detection noise."""
+
+SETTLE_TIME = 0.5
+"""Simulated seconds the robots settle on their wheels before a run starts, s."""
 
 RIG_STREAM = 3
 """Spawn key of the rig's random streams (the world uses 1, the camera sensors 2)."""
@@ -74,9 +78,12 @@ def build_sim_rig(world: World, fidelity: str, seed: int | None = None) -> SimRi
     led_rng = dict(zip(cams, rng[3 + len(names) :], strict=True))
 
     parent = sc.robots.parent.name
+    timings: dict[str, float] = {}
+    # Let the robots come to rest on their wheels before the first station defines W.
+    with timed(timings, "physics"):
+        world.run(SETTLE_TIME)
     position, rotation = world.instrument_pose(parent)
     frame = WorldFrame.from_instrument(position, rotation)
-    timings: dict[str, float] = {}
     render = fidelity == "render"
     clock = SimClock(world, physics=render, timings=timings)
     faults = sc.faults

@@ -1,0 +1,263 @@
+"""Where the robots go: CPS legs along the route, the children's formation, and the child's
+stops over a camera's view.
+
+Everything here is planned on the scenario's map (walls, obstacles, the cameras' nominal
+poses) and the campaign's current estimates; nothing is measured here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from calib.camera import TsaiCamera
+from twin.campaign.geometry import body_points, free, passes_near, sight_clear, unhidden_yaw
+from twin.campaign.route import RoutePath
+from twin.scenario.geometry import floor_view
+from twin.scenario.schema import Formation, Scenario
+
+IMAGE_MARGIN = 12.0
+"""The planned LED pixels stay this far inside the image, px, so that a child that stops a
+few centimetres off still shows all four LEDs."""
+
+MIN_SEPARATION = math.radians(8.0)
+"""Least angle between the two children seen from the parent, so that the automatic aim
+(5 deg search cone) cannot take one child's prism for the other's."""
+
+RANGE_MARGIN = 0.3
+"""Prisms are planned at least this much beyond the instrument's minimum range, m."""
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A planned stop of a robot: (x, y) m and heading rad in W."""
+
+    xy: NDArray[np.float64]
+    yaw: float
+
+
+def leg_goals(path: RoutePath, s_from: float, s_to: float, step: float) -> list[float]:
+    """Arc lengths of the parent's stations from ``s_from`` to ``s_to`` in equal legs of at
+    most ``step`` m (the last is ``s_to``)."""
+    n = max(1, math.ceil(abs(s_to - s_from) / step - 1e-9))
+    return [s_from + (s_to - s_from) * (k + 1) / n for k in range(n)]
+
+
+def _instrument(xy: ArrayLike, instrument_z: float) -> NDArray[np.float64]:
+    p = np.asarray(xy, dtype=float).reshape(2)
+    return np.array([p[0], p[1], instrument_z])
+
+
+def formation(
+    scenario: Scenario,
+    path: RoutePath,
+    s_next: float,
+    parent_now: ArrayLike,
+    parent_next: ArrayLike,
+    direction: float,
+    form: Formation,
+    instrument_z: float,
+) -> list[Stop] | None:
+    """Stops of the two children ahead of the parent's next station.
+
+    The children stand ahead (in the direction of travel, ``direction`` = +1 or -1 along the
+    path) of ``s_next``, staggered sideways; each must be free, in range and in sight of the
+    instrument at both the parent's current and next stations, and the two must be at least
+    ``MIN_SEPARATION`` apart seen from both. Smaller, mirrored and zero offsets and shorter
+    gaps are tried in turn. Returns the far child's stop first (it moves first), or None.
+    """
+    cubes = np.asarray(scenario.marker.cubes, dtype=float)
+    ts = scenario.noise.total_station
+    stations = [_instrument(parent_now, instrument_z), _instrument(parent_next, instrument_z)]
+    gaps = [form.near_gap, 0.75 * form.near_gap + 0.5, 2.0]
+    laterals = [form.lateral, -form.lateral, 0.5 * form.lateral, -0.5 * form.lateral]
+    for gap in gaps:
+        for spacing in (form.spacing, 0.7 * form.spacing):
+            for lat in laterals:
+                stops = []
+                for ahead, side in ((gap + spacing, -lat), (gap, lat)):
+                    s = s_next + direction * ahead
+                    xy = path.offset(s, side * direction)
+                    yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
+                    viewers = [st[:2] for st in stations]
+                    stops.append(Stop(xy, unhidden_yaw(xy, yaw, cubes, viewers)))
+                if _formation_ok(scenario, stops, stations, cubes, ts.range_min, ts.range_max):
+                    return stops
+    return None
+
+
+def _formation_ok(
+    scenario: Scenario,
+    stops: list[Stop],
+    stations: list[NDArray[np.float64]],
+    cubes: NDArray[np.float64],
+    range_min: float,
+    range_max: float,
+) -> bool:
+    xy = np.array([s.xy for s in stops])
+    if not free(scenario, xy).all():
+        return False
+    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
+        return False
+    floor = scenario.space.floor_z
+    for inst in stations:
+        if np.min(np.linalg.norm(xy - inst[:2], axis=1)) < 1.0:
+            return False
+        bearings = []
+        for k, stop in enumerate(stops):
+            pts = body_points(stop.xy, stop.yaw, cubes, floor)[0]
+            d = np.linalg.norm(pts - inst, axis=1)
+            if d.min() < range_min + RANGE_MARGIN or d.max() > range_max:
+                return False
+            if not sight_clear(scenario, inst, pts).all():
+                return False
+            other = xy[1 - k]
+            if passes_near(inst[:2], pts[:, :2], other).any():
+                return False
+            v = stop.xy - inst[:2]
+            bearings.append(math.atan2(v[1], v[0]))
+        sep = abs((bearings[0] - bearings[1] + math.pi) % (2 * math.pi) - math.pi)
+        if sep < MIN_SEPARATION:
+            return False
+    return True
+
+
+@dataclass(frozen=True)
+class ViewStop:
+    """A planned stop of a child in a camera's view.
+
+    Attributes:
+        stop: where the child stands, facing the camera.
+        pixels: (N_led, 2) where the camera's nominal model expects its LEDs, px.
+    """
+
+    stop: Stop
+    pixels: NDArray[np.float64]
+
+
+def view_stops(
+    scenario: Scenario,
+    camera: TsaiCamera,
+    parent_xy: ArrayLike,
+    instrument_z: float,
+    anchor_xy: ArrayLike | None,
+    grid: int = 40,
+) -> list[ViewStop]:
+    """Where a child can stand to show all its LEDs to ``camera``, in the order to use them.
+
+    Candidates come from the camera's view footprint on the floor (a ``grid`` x ``grid``
+    sample of the image). A candidate is kept when the child, facing the camera, is free
+    of walls and obstacles and clear of the parent and the anchor child; all four LEDs
+    project inside the image with ``IMAGE_MARGIN`` and nothing on the map, the parent or
+    the anchor hides them from the camera; and the total station sees its three prisms in
+    range (the child turns up to 60 deg from facing the camera where its mast would hide
+    a prism from the parent). The order is farthest-point sampling in (image column, image
+    row, distance), starting next to the image centre: any first n stops spread over the
+    view and depth.
+
+    Args:
+        scenario: the map. camera: the camera's nominal model (world frame).
+        parent_xy: the parent's position, m. instrument_z: the instrument's height in W, m.
+        anchor_xy: the other child's position (it stays), m, or None.
+    """
+    floor = scenario.space.floor_z
+    leds = np.asarray(scenario.marker.leds, dtype=float)
+    cubes = np.asarray(scenario.marker.cubes, dtype=float)
+    ground = floor_view(camera, floor, max_range=40.0, grid=grid)
+    if len(ground) == 0:
+        return []
+    xy = ground[:, :2]
+    cam = camera.position
+    yaw = np.arctan2(cam[1] - xy[:, 1], cam[0] - xy[:, 0])
+    # The mast is at the body origin and the LEDs stand in front of it: move the body back
+    # so that the mast, not the body origin, is where the image row points.
+    ok = free(scenario, xy)
+    parent = np.asarray(parent_xy, dtype=float).reshape(2)
+    ok &= np.linalg.norm(xy - parent, axis=1) > 1.2
+    if anchor_xy is not None:
+        ok &= np.linalg.norm(xy - np.asarray(anchor_xy, float).reshape(2), axis=1) > 1.2
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return []
+    # Turn the child a little where its mast would hide a prism from the parent.
+    yaw[idx] = [unhidden_yaw(xy[i], yaw[i], cubes, parent) for i in idx]
+    led_w = body_points(xy[idx], yaw[idx], leds, floor)
+    cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
+    w, h = camera.image_size
+    inst = np.array([parent[0], parent[1], instrument_z])
+    ts = scenario.noise.total_station
+    keep: list[int] = []
+    pix_all: list[NDArray] = []
+    for j, i in enumerate(idx):
+        z = camera.to_camera_frame(led_w[j])[:, 2]
+        if np.any(z <= 0.1):
+            continue
+        try:
+            uv = camera.project(led_w[j])
+        except ValueError:
+            continue
+        inside = (
+            (uv[:, 0] >= IMAGE_MARGIN)
+            & (uv[:, 0] <= w - 1 - IMAGE_MARGIN)
+            & (uv[:, 1] >= IMAGE_MARGIN)
+            & (uv[:, 1] <= h - 1 - IMAGE_MARGIN)
+        )
+        if not inside.all():
+            continue
+        if not sight_clear(scenario, cam, led_w[j]).all():
+            continue
+        blockers = [parent] + ([np.asarray(anchor_xy, float)] if anchor_xy is not None else [])
+        if any(passes_near(cam[:2], led_w[j][:, :2], b).any() for b in blockers):
+            continue
+        d = np.linalg.norm(cube_w[j] - inst, axis=1)
+        if d.min() < ts.range_min + RANGE_MARGIN or d.max() > ts.range_max:
+            continue
+        if not sight_clear(scenario, inst, cube_w[j]).all():
+            continue
+        if anchor_xy is not None and passes_near(inst[:2], cube_w[j][:, :2], anchor_xy).any():
+            continue
+        keep.append(int(i))
+        pix_all.append(uv)
+    if not keep:
+        return []
+    pix = np.array(pix_all)
+    depth = np.linalg.norm(xy[keep] - cam[:2], axis=1)
+    feats = np.column_stack(
+        [
+            pix[:, :, 0].mean(axis=1) / w,
+            pix[:, :, 1].mean(axis=1) / h,
+            (depth - depth.min()) / max(np.ptp(depth), 1e-9),
+        ]
+    )
+    order = _farthest_first(feats, start=np.array([0.5, 0.5, 0.5]))
+    return [ViewStop(Stop(xy[keep[k]].copy(), float(yaw[keep[k]])), pix[k]) for k in order]
+
+
+def _farthest_first(feats: NDArray[np.float64], start: NDArray[np.float64]) -> list[int]:
+    """Farthest-point order of (N, D) features, first the one nearest ``start``."""
+    n = len(feats)
+    first = int(np.argmin(np.linalg.norm(feats - start, axis=1)))
+    order = [first]
+    dist = np.linalg.norm(feats - feats[first], axis=1)
+    dist[first] = -1.0
+    while len(order) < n:
+        k = int(np.argmax(dist))
+        order.append(k)
+        dist = np.minimum(dist, np.linalg.norm(feats - feats[k], axis=1))
+        dist[order] = -1.0
+    return order
+
+
+def tour(stops: list[ViewStop], start_xy: ArrayLike) -> list[ViewStop]:
+    """The stops reordered as a nearest-neighbour tour from ``start_xy`` (less driving)."""
+    left = list(stops)
+    here = np.asarray(start_xy, dtype=float).reshape(2)
+    out = []
+    while left:
+        k = int(np.argmin([np.linalg.norm(s.stop.xy - here) for s in left]))
+        out.append(left.pop(k))
+        here = out[-1].stop.xy
+    return out

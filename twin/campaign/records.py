@@ -1,0 +1,136 @@
+"""What the campaign derives and records beside the devices' readings (topics
+``/campaign/...``): each is a frozen dataclass with a timestamp, in SI units and W."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+STAGE = "/campaign/stage"
+PARENT_FIX = "/campaign/parent_fix"
+POINT = "/campaign/point"
+CALIBRATION = "/campaign/calibration"
+FAILURE = "/campaign/failure"
+SKIPPED = "/campaign/skipped_visit"
+SUMMARY = "/campaign/summary"
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A stage of the campaign starts.
+
+    Attributes:
+        timestamp: s. stage: ``reference``, ``travel``, ``station``, ``done``.
+        camera: the camera concerned ("" if none). visit: 1-based visit number of the
+            camera (0 for a reference data set or travel). detail: words.
+    """
+
+    timestamp: float
+    stage: str
+    camera: str = ""
+    visit: int = 0
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class ParentFix:
+    """The parent's pose in W after a CPS step (or at its first station).
+
+    Attributes:
+        timestamp: s. index: station number (0 = the first, which defines W).
+        yaw: rad. translation: (3,) instrument centre in W, m. covariance: (4, 4) of
+            (yaw, x, y, z). distance_travelled: the parent's travel so far, m.
+    """
+
+    timestamp: float
+    index: int
+    yaw: float
+    translation: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    distance_travelled: float
+
+
+@dataclass(frozen=True)
+class DataPoint:
+    """One stop of a child in a camera's view: its LEDs in 3D and in the image.
+
+    Attributes:
+        timestamp: s. dataset: ``reference`` or ``visit``. camera: name. visit: the
+            camera's visit number (0 for a reference data set). child: name.
+        leds_world: (N_led, 3) LED positions in W from the total station and CPS, m.
+        pixels: (N_led, 2) where the camera found them, px.
+        child_xy: (2,) the child's reference point in W, m.
+    """
+
+    timestamp: float
+    dataset: str
+    camera: str
+    visit: int
+    child: str
+    leds_world: NDArray[np.float64]
+    pixels: NDArray[np.float64]
+    child_xy: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """A camera calibrated from one visit's data.
+
+    Attributes:
+        timestamp: s. camera, visit: which calibration. station: (2,) planned station, m.
+        distance_travelled: the parent's travel when the data were taken, m.
+        points: number of LED points used.
+        parameters: Tsai's parameters by name, SI (``calib.tsai`` names).
+        std: their standard deviations.
+        camera_model: the calibrated camera as ``calib.io.camera_to_dict`` writes it.
+        sigma_px: residual standard deviation, px.
+    """
+
+    timestamp: float
+    camera: str
+    visit: int
+    station: NDArray[np.float64]
+    distance_travelled: float
+    points: int
+    parameters: dict[str, float]
+    std: dict[str, float]
+    camera_model: dict[str, Any] = field(default_factory=dict)
+    sigma_px: float = float("nan")
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Something went wrong and the campaign went on.
+
+    Attributes:
+        timestamp: s. kind: a short name (``lost_lock``, ``point_skipped``...).
+        message: words. robot, camera: concerned ("" if none).
+        details: plain values.
+    """
+
+    timestamp: float
+    kind: str
+    message: str = ""
+    robot: str = ""
+    camera: str = ""
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SkippedVisit:
+    """A visit that yielded no calibration.
+
+    Attributes:
+        timestamp: s. camera, visit: which. station: (2,) m. reason: a short name
+        (``station_unreachable``, ``too_few_points``). message: words.
+    """
+
+    timestamp: float
+    camera: str
+    visit: int
+    station: NDArray[np.float64]
+    reason: str
+    message: str = ""

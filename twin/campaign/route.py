@@ -1,0 +1,76 @@
+"""The reference route as a path: arc length, points and headings along it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+class RoutePath:
+    """A polyline on the floor, walked by arc length.
+
+    Args:
+        waypoints: (K, 2) points, m, K >= 2. Beyond its ends the path goes on straight.
+    """
+
+    def __init__(self, waypoints: ArrayLike) -> None:
+        p = np.asarray(waypoints, dtype=float)
+        if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2:
+            raise ValueError(f"waypoints must be (K >= 2, 2), got {p.shape}")
+        seg = np.diff(p, axis=0)
+        lengths = np.linalg.norm(seg, axis=1)
+        keep = np.concatenate([[True], lengths > 1e-9])
+        self.points = p[keep]
+        seg = np.diff(self.points, axis=0)
+        self.lengths = np.linalg.norm(seg, axis=1)
+        self.directions = seg / self.lengths[:, None]
+        self.starts = np.concatenate([[0.0], np.cumsum(self.lengths)])
+
+    @property
+    def length(self) -> float:
+        """Total length, m."""
+        return float(self.starts[-1])
+
+    def _segment(self, s: float) -> int:
+        return int(
+            np.clip(np.searchsorted(self.starts, s, side="right") - 1, 0, len(self.lengths) - 1)
+        )
+
+    def at(self, s: float) -> NDArray[np.float64]:
+        """(2,) the point at arc length ``s``, m (straight on beyond the ends)."""
+        i = self._segment(s)
+        return self.points[i] + (s - self.starts[i]) * self.directions[i]
+
+    def heading(self, s: float) -> float:
+        """Direction of travel at arc length ``s``, rad."""
+        d = self.directions[self._segment(s)]
+        return math.atan2(d[1], d[0])
+
+    def offset(self, s: float, lateral: float) -> NDArray[np.float64]:
+        """(2,) the point ``lateral`` m to the left of the path at ``s``."""
+        h = self.heading(s)
+        return self.at(s) + lateral * np.array([-math.sin(h), math.cos(h)])
+
+    def project(self, xy: ArrayLike) -> float:
+        """Arc length of the path's point nearest to ``xy``, m."""
+        q = np.asarray(xy, dtype=float).reshape(2)
+        best, best_d = 0.0, math.inf
+        for i, (a, d, n) in enumerate(
+            zip(self.points[:-1], self.directions, self.lengths, strict=True)
+        ):
+            t = float(np.clip((q - a) @ d, 0.0, n))
+            dist = float(np.linalg.norm(a + t * d - q))
+            if dist < best_d - 1e-9:
+                best, best_d = self.starts[i] + t, dist
+        return best
+
+    def vertices_between(self, s0: float, s1: float) -> list[NDArray[np.float64]]:
+        """The path's corners strictly between arc lengths ``s0`` and ``s1`` (in travel
+        order), so that a robot following the path turns there."""
+        inner = self.starts[1:-1]
+        idx = np.flatnonzero((inner > min(s0, s1) + 1e-6) & (inner < max(s0, s1) - 1e-6)) + 1
+        if s1 < s0:
+            idx = idx[::-1]
+        return [self.points[i].copy() for i in idx]
