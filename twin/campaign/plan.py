@@ -14,7 +14,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
-from twin.campaign.geometry import body_points, free, passes_near, sight_clear, unhidden_yaw
+from twin.campaign.geometry import (
+    body_points,
+    child_profile,
+    free,
+    parent_profile,
+    passes_near,
+    prisms_hidden,
+    sight_clear,
+    unhidden_yaw,
+)
 from twin.campaign.route import RoutePath
 from twin.scenario.geometry import floor_view
 from twin.scenario.schema import Formation, Scenario
@@ -23,9 +32,13 @@ IMAGE_MARGIN = 12.0
 """The planned LED pixels stay this far inside the image, px, so that a child that stops a
 few centimetres off still shows all four LEDs."""
 
-MIN_SEPARATION = math.radians(8.0)
-"""Least angle between the two children seen from the parent, so that the automatic aim
-(5 deg search cone) cannot take one child's prism for the other's."""
+MIN_SEPARATION = math.radians(4.0)
+"""Least angle between the two children seen from the parent, so that an aim at one is
+not nearer the other (a parent that just moved knows its heading to about a degree)."""
+
+FORMATION_CLEARANCE = 0.35
+"""Distance kept between a child's centre and walls in the formation, m (its radius, 0.29 m,
+and its stopping error: narrow corridors need the children close to the walls)."""
 
 RANGE_MARGIN = 0.3
 """Prisms are planned at least this much beyond the instrument's minimum range, m."""
@@ -73,17 +86,22 @@ def formation(
     ts = scenario.noise.total_station
     stations = [_instrument(parent_now, instrument_z), _instrument(parent_next, instrument_z)]
     gaps = [form.near_gap, 0.75 * form.near_gap + 0.5, 2.0]
-    laterals = [form.lateral, -form.lateral, 0.5 * form.lateral, -0.5 * form.lateral]
+    lat = form.lateral
+    # (near, far) sideways offsets: staggered either way, then both to one side.
+    sides = [(lat, -lat), (-lat, lat), (0.5 * lat, -0.5 * lat), (-0.5 * lat, 0.5 * lat)]
+    sides += [(a * lat, b * lat) for a, b in ((0, -1), (0, 1), (-1, 0), (1, 0), (-1.5, -0.3))]
+    sides += [(a * lat, b * lat) for a, b in ((1.5, 0.3), (-0.3, -1.5), (0.3, 1.5))]
+    sides += [(0.3, -0.3), (-0.3, 0.3), (0.15, -0.15), (-0.15, 0.15)]  # narrow corridors
     for gap in gaps:
         for spacing in (form.spacing, 0.7 * form.spacing):
-            for lat in laterals:
+            for near_side, far_side in sides:
                 stops = []
-                for ahead, side in ((gap + spacing, -lat), (gap, lat)):
+                for ahead, side in ((gap + spacing, far_side), (gap, near_side)):
                     s = s_next + direction * ahead
                     xy = path.offset(s, side * direction)
                     yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
-                    viewers = [st[:2] for st in stations]
-                    stops.append(Stop(xy, unhidden_yaw(xy, yaw, cubes, viewers)))
+                    turned = unhidden_yaw(xy, yaw, cubes, stations, scenario.space.floor_z)
+                    stops.append(Stop(xy, yaw if turned is None else turned))
                 if _formation_ok(scenario, stops, stations, cubes, ts.range_min, ts.range_max):
                     return stops
     return None
@@ -98,7 +116,7 @@ def _formation_ok(
     range_max: float,
 ) -> bool:
     xy = np.array([s.xy for s in stops])
-    if not free(scenario, xy).all():
+    if not free(scenario, xy, FORMATION_CLEARANCE).all():
         return False
     if np.linalg.norm(xy[0] - xy[1]) < 1.0:
         return False
@@ -114,8 +132,10 @@ def _formation_ok(
                 return False
             if not sight_clear(scenario, inst, pts).all():
                 return False
+            if prisms_hidden(stop.xy, stop.yaw, cubes, inst, floor).any():
+                return False
             other = xy[1 - k]
-            if passes_near(inst[:2], pts[:, :2], other).any():
+            if passes_near(inst, pts, other, child_profile(floor)).any():
                 return False
             v = stop.xy - inst[:2]
             bearings.append(math.atan2(v[1], v[0]))
@@ -148,15 +168,14 @@ def view_stops(
 ) -> list[ViewStop]:
     """Where a child can stand to show all its LEDs to ``camera``, in the order to use them.
 
-    Candidates come from the camera's view footprint on the floor (a ``grid`` x ``grid``
-    sample of the image). A candidate is kept when the child, facing the camera, is free
-    of walls and obstacles and clear of the parent and the anchor child; all four LEDs
-    project inside the image with ``IMAGE_MARGIN`` and nothing on the map, the parent or
-    the anchor hides them from the camera; and the total station sees its three prisms in
-    range (the child turns up to 60 deg from facing the camera where its mast would hide
-    a prism from the parent). The order is farthest-point sampling in (image column, image
-    row, distance), starting next to the image centre: any first n stops spread over the
-    view and depth.
+    Candidates come from the camera's view of the floor and of planes at the LEDs' heights
+    (``grid / 2`` x ``grid / 2`` samples of the image each). A candidate is kept when the
+    child, facing the camera, is free of walls and obstacles and clear of the parent and
+    the anchor child; all four LEDs project inside the image with ``IMAGE_MARGIN`` and
+    nothing on the map, the parent or the anchor hides them from the camera; and the total
+    station sees its three prisms in range. The order is farthest-point sampling in (image
+    column, image row, distance), starting next to the image centre: any first n stops
+    spread over the view and depth.
 
     Args:
         scenario: the map. camera: the camera's nominal model (world frame).
@@ -166,7 +185,10 @@ def view_stops(
     floor = scenario.space.floor_z
     leds = np.asarray(scenario.marker.leds, dtype=float)
     cubes = np.asarray(scenario.marker.cubes, dtype=float)
-    ground = floor_view(camera, floor, max_range=40.0, grid=grid)
+    # Where the image's rays meet planes at the LEDs' heights: a steep camera sees the top
+    # LED only far beyond where it sees the floor.
+    heights = np.linspace(0.0, float(leds[:, 2].max()), 4)
+    ground = np.vstack([floor_view(camera, floor + z, 40.0, grid // 2) for z in heights])
     if len(ground) == 0:
         return []
     xy = ground[:, :2]
@@ -182,13 +204,12 @@ def view_stops(
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return []
-    # Turn the child a little where its mast would hide a prism from the parent.
-    yaw[idx] = [unhidden_yaw(xy[i], yaw[i], cubes, parent) for i in idx]
     led_w = body_points(xy[idx], yaw[idx], leds, floor)
     cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
     w, h = camera.image_size
     inst = np.array([parent[0], parent[1], instrument_z])
     ts = scenario.noise.total_station
+    anchor = child_profile(floor)
     keep: list[int] = []
     pix_all: list[NDArray] = []
     for j, i in enumerate(idx):
@@ -209,15 +230,16 @@ def view_stops(
             continue
         if not sight_clear(scenario, cam, led_w[j]).all():
             continue
-        blockers = [parent] + ([np.asarray(anchor_xy, float)] if anchor_xy is not None else [])
-        if any(passes_near(cam[:2], led_w[j][:, :2], b).any() for b in blockers):
+        if passes_near(cam, led_w[j], parent, parent_profile(floor)).any():
+            continue
+        if anchor_xy is not None and passes_near(cam, led_w[j], anchor_xy, anchor).any():
             continue
         d = np.linalg.norm(cube_w[j] - inst, axis=1)
         if d.min() < ts.range_min + RANGE_MARGIN or d.max() > ts.range_max:
             continue
         if not sight_clear(scenario, inst, cube_w[j]).all():
             continue
-        if anchor_xy is not None and passes_near(inst[:2], cube_w[j][:, :2], anchor_xy).any():
+        if anchor_xy is not None and passes_near(inst, cube_w[j], anchor_xy, anchor).any():
             continue
         keep.append(int(i))
         pix_all.append(uv)

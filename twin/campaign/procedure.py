@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from calib.detection.sequence import SwitchingSequence
 from calib.io.camera_files import camera_to_dict
 from calib.tsai import calibrate_tsai
+from twin.campaign.geometry import unhidden_yaw
 from twin.campaign.plan import Stop, ViewStop, formation, leg_goals, tour, view_stops
 from twin.campaign.records import (
     CALIBRATION,
@@ -97,6 +98,10 @@ class CampaignAborted(RuntimeError):
     """The group cannot go on (CPS lost both children)."""
 
 
+TURNS_DEG = (30.0, -60.0)
+"""How a child turns, one after the other, when the parent cannot measure all its prisms."""
+
+
 class Campaign:
     """One run of the calibration campaign on a rig.
 
@@ -138,6 +143,7 @@ class Campaign:
         self._fixes = 0
         self._stage = Progress("start")
         self._last_xy = np.zeros(2)
+        self._s = self.path.project(scenario.robots.parent.start_xy)
 
     # -- records ---------------------------------------------------------------------------
     def _now(self) -> float:
@@ -269,6 +275,19 @@ class Campaign:
         self._fix_child_pose(child, obs, self.cps.parent)
         return obs
 
+    def _place_child_turning(self, child: str) -> ChildObservation | None:
+        """:meth:`_place_child`; if a prism stays out of reach, the child turns on the spot
+        (its reference point is on its mast, the axis it turns about) and is measured again."""
+        obs = self._place_child(child)
+        for turn in TURNS_DEG:
+            if obs is not None:
+                return obs
+            pose = self._child_pose(child)
+            self._fail("child_turned", f"turning {turn:+.0f} deg to show its prisms", child)
+            self.rig.children[child].drive_to(pose[:2], pose[2] + math.radians(turn))
+            obs = self._place_child(child)
+        return obs
+
     # -- travel ----------------------------------------------------------------------------------
     def _drive_along(self, base: MobileBase, s_from: float, s_to: float, goal: Stop) -> bool:
         """Drive a base along the route's corners between two arc lengths, then to ``goal``."""
@@ -281,39 +300,34 @@ class Campaign:
     def _travel(self, station: NDArray[np.float64], yaw: float) -> bool:
         """CPS legs from the parent's place to ``station``; False if it was not reached."""
         parent_xy = self.cps.parent.translation[:2]
-        s_now = self.path.project(parent_xy)
+        s_now = self.path.project(parent_xy, near=self._s)
         s_goal = self.path.project(station)
         if np.linalg.norm(station - parent_xy) < 0.05:
             return True
         direction = 1.0 if s_goal >= s_now else -1.0
         goals = leg_goals(self.path, s_now, s_goal, self.cfg.formation.step)
-        for k, s_next in enumerate(goals):
-            last = k == len(goals) - 1
+        while goals:
+            s_next = goals[0]
+            last = len(goals) == 1
             next_xy = station if last else self.path.at(s_next)
             z = float(self.cps.parent.translation[2])
             stops = formation(
                 self.sc, self.path, s_next, parent_xy, next_xy, direction, self.cfg.formation, z
             )
             if stops is None:
+                # No room for the children ahead: a shorter leg (down to a quarter step).
+                if abs(s_next - s_now) > 0.3 * self.cfg.formation.step:
+                    goals.insert(0, 0.5 * (s_now + s_next))
+                    continue
                 self._fail("no_formation", f"no place for the children ahead of s = {s_next:.1f} m")
-                stops = formation(
-                    self.sc,
-                    self.path,
-                    s_now + 0.5 * (s_next - s_now),
-                    parent_xy,
-                    next_xy,
-                    direction,
-                    self.cfg.formation,
-                    z,
-                )
-                if stops is None:
-                    raise CampaignAborted(f"no formation for the leg to s = {s_next:.1f} m")
+                raise CampaignAborted(f"no formation for the leg to s = {s_next:.1f} m")
+            goals.pop(0)
             self._move_children(stops, direction)
             heading = yaw if last else self.path.heading(s_next) + (0 if direction > 0 else math.pi)
             reached = self._drive_along(self.rig.parent, s_now, s_next, Stop(next_xy, heading))
             self._fix_parent()
             parent_xy = self.cps.parent.translation[:2]
-            s_now = self.path.project(parent_xy)
+            s_now = self._s = self.path.project(parent_xy, near=s_next)
             if not reached:
                 self._fail("parent_blocked", "the parent stopped short of its goal", robot="parent")
                 if last:
@@ -322,14 +336,14 @@ class Campaign:
 
     def _move_children(self, stops: list[Stop], direction: float) -> None:
         """Send the children to their formation stops (the far one first) and measure them."""
-        s = {c: self.path.project(self._child_pose(c)[:2]) for c in self.children[:2]}
+        s = {c: self.path.project(self._child_pose(c)[:2], near=self._s) for c in self.children[:2]}
         order = sorted(s, key=lambda c: direction * s[c], reverse=True)
         for child, stop in zip(order, stops, strict=True):
-            s_stop = self.path.project(stop.xy)
+            s_stop = self.path.project(stop.xy, near=self._s)
             drive = self._drive_along(self.rig.children[child], s[child], s_stop, stop)
             if not drive:
                 self._fail("child_blocked", "the child stopped short of its stop", robot=child)
-            if self._place_child(child) is None and self._place_child(child) is None:
+            if self._place_child_turning(child) is None:
                 raise CampaignAborted(f"the parent cannot measure {child}")
 
     def _fix_parent(self) -> None:
@@ -399,7 +413,16 @@ class Campaign:
         while plan and len(pts) < target:
             stop = plan.pop(0).stop
             self._tell(robot=child, camera=camera, points=len(pts))
-            result = base.drive_to(stop.xy, stop.yaw)
+            # Turn the child where its own mast, arms or prisms would hide a prism.
+            yaw = unhidden_yaw(
+                stop.xy, stop.yaw, self.marker.cubes_body, parent.translation, self.floor_z, 50.0
+            )
+            if yaw is None:
+                self._fail("prisms_hidden", "every heading hides a prism", child, camera)
+                plan += spares[:1]
+                spares = spares[1:]
+                continue
+            result = base.drive_to(stop.xy, yaw)
             if not result.reached:
                 self._fail(
                     "point_unreachable", result.message or result.status.value, child, camera
@@ -407,7 +430,7 @@ class Campaign:
                 plan += spares[:1]
                 spares = spares[1:]
                 continue
-            obs = self._place_child(child)
+            obs = self._place_child_turning(child)
             if obs is None:
                 self._fail("point_skipped", "the child's prisms were not measured", child, camera)
                 plan += spares[:1]

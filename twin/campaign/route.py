@@ -53,14 +53,21 @@ class RoutePath:
         h = self.heading(s)
         return self.at(s) + lateral * np.array([-math.sin(h), math.cos(h)])
 
-    def project(self, xy: ArrayLike) -> float:
-        """Arc length of the path's point nearest to ``xy``, m."""
+    def project(self, xy: ArrayLike, near: float | None = None, window: float = 20.0) -> float:
+        """Arc length of the path's point nearest to ``xy``, m; with ``near``, only the part
+        of the path within ``window`` m of arc length ``near`` is searched (a path that comes
+        back past itself has two nearest points)."""
         q = np.asarray(xy, dtype=float).reshape(2)
-        best, best_d = 0.0, math.inf
+        lo, hi = (-math.inf, math.inf) if near is None else (near - window, near + window)
+        best, best_d = float(np.clip(near, 0.0, self.length)) if near is not None else 0.0, math.inf
         for i, (a, d, n) in enumerate(
             zip(self.points[:-1], self.directions, self.lengths, strict=True)
         ):
-            t = float(np.clip((q - a) @ d, 0.0, n))
+            t_lo = max(0.0, lo - self.starts[i])
+            t_hi = min(n, hi - self.starts[i])
+            if t_hi < t_lo:
+                continue
+            t = float(np.clip((q - a) @ d, t_lo, t_hi))
             dist = float(np.linalg.norm(a + t * d - q))
             if dist < best_d - 1e-9:
                 best, best_d = self.starts[i] + t, dist

@@ -9,6 +9,7 @@ assembly (a wrong prism) are measured once more.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 
@@ -61,51 +62,145 @@ def _swept(aim: NDArray[np.float64], degrees: float) -> NDArray[np.float64]:
     return rot_z(math.radians(degrees)) @ aim
 
 
+DISTINCT = 0.02
+"""Two shots closer than this, m, locked the same prism."""
+
+
+def _shoot(
+    station: TotalStation, aim: NDArray[np.float64], retries: int, report: FailureSink, k: int
+) -> TotalStationMeasurement | None:
+    """One shot aimed at ``aim``, retried after a lost lock with aims swept around it."""
+    for attempt in range(retries + 1):
+        point = aim if attempt == 0 else _swept(aim, SWEEP_DEG[(attempt - 1) % len(SWEEP_DEG)])
+        station.point(point)
+        try:
+            return station.measure()
+        except RETRIED as exc:
+            kind = "lost_lock" if isinstance(exc, NoPrismInConeError) else "line_of_sight"
+            report(kind, str(exc), {"cube": k, "attempt": attempt})
+        except InstrumentError as exc:
+            report(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
+            return None
+    report("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
+    return None
+
+
+def _pair_labels(
+    points: NDArray[np.float64], cubes_body: NDArray[np.float64]
+) -> tuple[tuple[int, ...], float]:
+    """The labelling of 2 or 3 measured prisms that best fits the assembly's side lengths
+    (the triangle is scalene: its sides tell its corners apart), and the worst misfit, m."""
+    best: tuple[tuple[int, ...], float] = ((), np.inf)
+    n = len(points)
+    for labels in itertools.permutations(range(len(cubes_body)), n):
+        misfit = 0.0
+        for a, b in itertools.combinations(range(n), 2):
+            d_meas = np.linalg.norm(points[a] - points[b])
+            d_body = np.linalg.norm(cubes_body[labels[a]] - cubes_body[labels[b]])
+            misfit = max(misfit, abs(d_meas - d_body))
+        if misfit < best[1]:
+            best = (labels, misfit)
+    return best
+
+
+def _third_cube(
+    points: NDArray[np.float64], labels: tuple[int, ...], cubes_body: NDArray[np.float64]
+) -> tuple[int, NDArray[np.float64]]:
+    """The missing cube's label and position (levelled frame) from two identified ones,
+    the assembly standing level (a rigid motion in the plane, the height of the others)."""
+    (i, j), missing = labels, ({0, 1, 2} - set(labels)).pop()
+    b = cubes_body[:, :2]
+    vb, vm = b[j] - b[i], points[1, :2] - points[0, :2]
+    angle = math.atan2(vm[1], vm[0]) - math.atan2(vb[1], vb[0])
+    rot = rot_z(angle)[:2, :2]
+    xy = points[0, :2] + rot @ (b[missing] - b[i])
+    z = float(np.mean(points[:, 2])) + float(
+        cubes_body[missing, 2] - np.mean(cubes_body[[i, j], 2])
+    )
+    return missing, np.array([xy[0], xy[1], z])
+
+
+def _turned_onto(
+    predicted: NDArray[np.float64], k: int, point: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The (3, 3) prediction turned about the vertical axis through the instrument and
+    shifted along the line of sight so that cube ``k`` falls on ``point``."""
+    a = math.atan2(point[1], point[0]) - math.atan2(predicted[k, 1], predicted[k, 0])
+    turned = predicted @ rot_z(a).T
+    return turned + (point - turned[k])
+
+
 def shoot_cubes(
     station: TotalStation,
     predicted: NDArray[np.float64],
     retries: int,
     report: FailureSink,
+    cubes_body: NDArray[np.float64] | None = None,
 ) -> list[TotalStationMeasurement] | None:
-    """Shots at the three predicted cubes, or None when one could not be had.
+    """Shots at the three cubes, labelled cube 0, 1, 2, or None when one could not be had.
+
+    Each cube is aimed at its prediction. The automatic aim locks the prism nearest the
+    pointing direction, which need not be the one aimed at (the heading of a parent that
+    just moved is known to a degree; a prism may be hidden): the shots are labelled by the
+    assembly's side lengths, and a prism not yet measured is aimed at from the two that
+    are, which is accurate to millimetres.
 
     Args:
         station: the instrument. predicted: (3, 3) cube predictions, levelled frame, m.
         retries: further aims allowed per cube after a lost lock.
         report: receives each failure.
+        cubes_body: (3, 3) the assembly's cubes in its body frame (default: labels are
+            the aims, as with a perfect prediction).
     """
     shots: list[TotalStationMeasurement] = []
-    offsets: list[NDArray[np.float64]] = []
-    for k in range(len(predicted)):
-        aim = predicted[k].copy()
-        if offsets:
-            aim = aim + np.mean(offsets, axis=0)
-            # A large offset means a wrong prism was locked: do not follow it.
-            if np.linalg.norm(aim - predicted[k]) > MAX_AIM_CORRECTION:
-                aim = predicted[k].copy()
-        shot = None
-        for attempt in range(retries + 1):
-            if attempt > 0 and not offsets:
-                aim = _swept(predicted[k], SWEEP_DEG[(attempt - 1) % len(SWEEP_DEG)])
-            station.point(aim)
-            try:
-                shot = station.measure()
-                break
-            except RETRIED as exc:
-                report(
-                    "lost_lock" if isinstance(exc, NoPrismInConeError) else "line_of_sight",
-                    str(exc),
-                    {"cube": k, "attempt": attempt},
-                )
-            except InstrumentError as exc:
-                report(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
-                return None
+
+    def add(shot: TotalStationMeasurement | None) -> None:
         if shot is None:
-            report("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
-            return None
-        shots.append(shot)
-        offsets.append(shot.to_cartesian() - predicted[k])
-    return shots
+            return
+        p = shot.to_cartesian()
+        if all(np.linalg.norm(p - s.to_cartesian()) > DISTINCT for s in shots):
+            shots.append(shot)
+
+    for k in range(len(predicted)):
+        add(_shoot(station, predicted[k], retries, report, k))
+    if cubes_body is None:
+        return shots if len(shots) == len(predicted) else None
+    for _ in range(3):
+        if len(shots) in (0, 3):
+            break
+        points = np.array([s.to_cartesian() for s in shots])
+        if len(shots) == 2:
+            # The two prisms' distance tells which two they are, not which is which: try
+            # both ways round, the one that puts the third cube nearer its prediction first.
+            labels, _misfit = _pair_labels(points, cubes_body)
+            tries = [_third_cube(points, labels, cubes_body)]
+            tries.append(_third_cube(points, labels[::-1], cubes_body))
+            tries.sort(key=lambda t: float(np.linalg.norm(t[1] - predicted[t[0]])))
+            for missing, aim in tries:
+                report("prism_reaimed", f"aiming at cube {missing} from the other two", {})
+                add(_shoot(station, aim, 0, report, missing))
+                if len(shots) == 3:
+                    break
+        else:
+            # One prism, which may be any of the three: for each guess, nearest first, turn
+            # the prediction about the instrument's vertical axis onto it (the heading of a
+            # parent that just moved is the least known) and aim at another cube.
+            guesses = np.argsort(np.linalg.norm(predicted - points[0], axis=1))
+            for k in guesses:
+                turned = _turned_onto(predicted, int(k), points[0])
+                report("prism_reaimed", f"aiming at the others as if cube {k} was locked", {})
+                for j in range(len(predicted)):
+                    if j != k and len(shots) < 2:
+                        add(_shoot(station, turned[j], 0, report, j))
+                if len(shots) >= 2:
+                    break
+    if len(shots) != 3:
+        report("prism_missing", f"measured {len(shots)} distinct prisms of 3", {})
+        return None
+    points = np.array([s.to_cartesian() for s in shots])
+    labels, _misfit = _pair_labels(points, cubes_body)
+    ordered = [shots[labels.index(k)] for k in range(3)]
+    return ordered
 
 
 def measure_child(
@@ -127,7 +222,7 @@ def measure_child(
     """
     predicted = predict_cubes_level(parent, child_pose, marker, floor_z)
     for attempt in range(2):
-        shots = shoot_cubes(station, predicted, retries, report)
+        shots = shoot_cubes(station, predicted, retries, report, marker.cubes_body)
         if shots is None:
             return None
         try:
