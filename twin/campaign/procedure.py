@@ -311,9 +311,10 @@ class Campaign:
             last = len(goals) == 1
             next_xy = station if last else self.path.at(s_next)
             z = float(self.cps.parent.translation[2])
-            stops = formation(
-                self.sc, self.path, s_next, parent_xy, next_xy, direction, self.cfg.formation, z
-            )
+            with _Timer(self.rig.timings, "planning"):
+                stops = formation(
+                    self.sc, self.path, s_next, parent_xy, next_xy, direction, self.cfg.formation, z
+                )
             if stops is None:
                 # No room for the children ahead: a shorter leg (down to a quarter step).
                 if abs(s_next - s_now) > 0.3 * self.cfg.formation.step:
@@ -391,13 +392,14 @@ class Campaign:
         child = self._choose_child(camera)
         anchor = next(c for c in self.children if c != child)
         parent = self.cps.parent
-        candidates = view_stops(
-            self.sc,
-            self.sc.camera(camera).tsai(),
-            parent.translation[:2],
-            float(parent.translation[2]),
-            self._child_pose(anchor)[:2],
-        )
+        with _Timer(self.rig.timings, "planning"):
+            candidates = view_stops(
+                self.sc,
+                self.sc.camera(camera).tsai(),
+                parent.translation[:2],
+                float(parent.translation[2]),
+                self._child_pose(anchor)[:2],
+            )
         n_leds = len(self.marker.leds_body)
         need = math.ceil(target / n_leds)
         if not candidates:
@@ -414,9 +416,15 @@ class Campaign:
             stop = plan.pop(0).stop
             self._tell(robot=child, camera=camera, points=len(pts))
             # Turn the child where its own mast, arms or prisms would hide a prism.
-            yaw = unhidden_yaw(
-                stop.xy, stop.yaw, self.marker.cubes_body, parent.translation, self.floor_z, 50.0
-            )
+            with _Timer(self.rig.timings, "planning"):
+                yaw = unhidden_yaw(
+                    stop.xy,
+                    stop.yaw,
+                    self.marker.cubes_body,
+                    parent.translation,
+                    self.floor_z,
+                    50.0,
+                )
             if yaw is None:
                 self._fail("prisms_hidden", "every heading hides a prism", child, camera)
                 plan += spares[:1]

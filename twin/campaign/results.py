@@ -1,0 +1,202 @@
+"""A campaign's results, computed from what its log recorded.
+
+:func:`results_from_log` reads the records of a run (``/campaign/...``, and ``/truth/...``
+when a simulation wrote its truth beside them) and returns the content of
+``results.json``: every calibration with its parameters in the paper's units, the Table III
+errors (world: against the reference data sets measured from the first station; local:
+against the data taken at that station), the errors against the truth, the repeatability of
+cameras calibrated twice, the parent's track and every failure by kind.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from calib.camera import TsaiCamera
+from calib.io.camera_files import camera_from_dict
+from calib.metrics import evaluate
+from calib.paper_units import kappa1_px_to_mm
+from twin.campaign.records import CALIBRATION, FAILURE, PARENT_FIX, POINT, SKIPPED
+
+META = "/run/meta"
+"""Topic of the run's description (scenario, fidelity, seed), written first."""
+SUMMARY = "/run/summary"
+"""Topic of the run's wall time and timings, written last."""
+TRUTH_CAMERA = "/truth/camera"
+"""Topic of a camera's true model in W (simulation only)."""
+TRUTH_PARENT = "/truth/parent_fix"
+"""Topic of the parent's true pose at each CPS fix (simulation only)."""
+
+
+def _array(values: Any) -> NDArray[np.float64]:
+    return np.array([np.nan if v is None else v for v in np.ravel(values)], dtype=float).reshape(
+        np.shape(values)
+    )
+
+
+def _by_topic(messages: Iterable[Any]) -> dict[str, list[dict[str, Any]]]:
+    out: dict[str, list[dict[str, Any]]] = {}
+    for m in messages:
+        out.setdefault(m.topic, []).append(m.data)
+    return out
+
+
+def _points(points: list[Mapping[str, Any]]) -> tuple[NDArray, NDArray, NDArray]:
+    """(N, 3) LED points, (N, 2) pixels and (K, 2) child positions of data points."""
+    if not points:
+        return np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2))
+    pts = np.vstack([_array(p["leds_world"]) for p in points])
+    pix = np.vstack([_array(p["pixels"]) for p in points])
+    xy = np.array([_array(p["child_xy"]) for p in points])
+    return pts, pix, xy
+
+
+def _errors(camera: Any, pts: NDArray, pix: NDArray) -> dict[str, float] | None:
+    if len(pts) == 0:
+        return None
+    m = evaluate(camera, pts, pix)
+    return {
+        "pixel_mean": m.pixel.mean,
+        "pixel_rms": m.pixel.rms,
+        "error_3d_mean_mm": 1e3 * m.error_3d.mean,
+        "error_3d_rms_mm": 1e3 * m.error_3d.rms,
+        "points": m.n_points,
+    }
+
+
+def _truth(camera: Any, truth: Any) -> dict[str, Any]:
+    r = camera.world2cam_r @ truth.world2cam_r.T
+    angle = float(np.degrees(Rotation.from_matrix(r).magnitude()))
+    return {
+        "position_error_mm": float(1e3 * np.linalg.norm(camera.position - truth.position)),
+        "position_mm": (1e3 * truth.position).tolist(),
+        "rotation_error_deg": angle,
+    }
+
+
+def _parameters(camera: Any, pixel_size_mm: float) -> dict[str, Any]:
+    out: dict[str, Any] = {"position_mm": (1e3 * camera.position).tolist()}
+    if isinstance(camera, TsaiCamera):
+        out.update(
+            f_px=camera.f,
+            cx=camera.cx,
+            cy=camera.cy,
+            sx=camera.sx,
+            kappa1_px=camera.kappa1,
+            kappa1_per_mm2=kappa1_px_to_mm(camera.kappa1, pixel_size_mm),
+            rotation_deg=np.degrees(camera.rotation_rad).tolist(),
+        )
+    return out
+
+
+def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> dict[str, Any]:
+    """The results of a run from its log's messages (``LogContents.messages``).
+
+    Args:
+        messages: the log's messages, each with ``topic`` and ``data`` (the record's fields).
+        pixel_size_mm: the sensor's pixel pitch, for kappa1 in 1/mm^2.
+
+    Returns:
+        The content of ``results.json`` (see the README); a log cut short gives the results
+        of what it holds, with ``complete`` False.
+    """
+    t = _by_topic(messages)
+    meta = (t.get(META) or [{}])[0]
+    summary = (t.get(SUMMARY) or [None])[-1]
+    points = t.get(POINT, [])
+    references: dict[str, tuple[NDArray, NDArray]] = {}
+    for cam in dict.fromkeys(p["camera"] for p in points if p["dataset"] == "reference"):
+        pts, pix, _ = _points(
+            [p for p in points if p["dataset"] == "reference" and p["camera"] == cam]
+        )
+        references[cam] = (pts, pix)
+    truths = {d["name"]: camera_from_dict(d["camera"], "truth") for d in t.get(TRUTH_CAMERA, [])}
+
+    calibrations = []
+    first_position: dict[str, NDArray] = {}
+    last_position: dict[str, NDArray] = {}
+    for rec in t.get(CALIBRATION, []):
+        cam_name, visit = rec["camera"], rec["visit"]
+        camera = camera_from_dict(rec["camera_model"], f"calibration of {cam_name}")
+        mine = [
+            p
+            for p in points
+            if p["dataset"] == "visit" and p["camera"] == cam_name and p["visit"] == visit
+        ]
+        pts, pix, xy = _points(mine)
+        pts, pix = pts[: rec["points"]], pix[: rec["points"]]
+        ref = references.get(cam_name)
+        entry: dict[str, Any] = {
+            "camera": cam_name,
+            "visit": visit,
+            "station": _array(rec["station"]).tolist(),
+            "distance_travelled_m": rec["distance_travelled"],
+            "points": rec["points"],
+            "sigma_px": rec["sigma_px"],
+            "parameters": _parameters(camera, pixel_size_mm),
+            "std": rec["std"],
+            "errors": {
+                "world": _errors(camera, *ref) if ref is not None else None,
+                "local": _errors(camera, pts, pix),
+            },
+            "truth": _truth(camera, truths[cam_name]) if cam_name in truths else None,
+            "residuals_px": (pix - camera.project(pts)).tolist() if len(pts) else [],
+            "data_points_xy": xy.tolist(),
+        }
+        calibrations.append(entry)
+        first_position.setdefault(cam_name, camera.position)
+        last_position[cam_name] = camera.position
+
+    fixes = t.get(PARENT_FIX, [])
+    true_fixes = {d["index"]: d for d in t.get(TRUTH_PARENT, [])}
+    estimated = [_array(f["translation"])[:2].tolist() for f in fixes]
+    true_track = [
+        _array(true_fixes[f["index"]]["translation"])[:2].tolist()
+        for f in fixes
+        if f["index"] in true_fixes
+    ]
+    final_error = None
+    if fixes and fixes[-1]["index"] in true_fixes:
+        est = _array(fixes[-1]["translation"])
+        true = _array(true_fixes[fixes[-1]["index"]]["translation"])
+        final_error = float(1e3 * np.linalg.norm(est - true))
+    failures = Counter(f["kind"] for f in t.get(FAILURE, []))
+    for s in t.get(SKIPPED, []):
+        failures[f"visit_{s['reason']}"] += 1
+    return {
+        "scenario": meta.get("scenario", ""),
+        "scenario_file": meta.get("scenario_file", ""),
+        "fidelity": meta.get("fidelity", ""),
+        "seed": meta.get("seed"),
+        "complete": summary is not None,
+        "wall_time_s": None if summary is None else summary["wall_time_s"],
+        "timings_s": None if summary is None else summary["timings_s"],
+        "pixel_size_mm": pixel_size_mm,
+        "reference_sets": [{"camera": c, "points": len(p)} for c, (p, _) in references.items()],
+        "calibrations": calibrations,
+        "skipped_visits": [
+            {
+                "camera": s["camera"],
+                "visit": s["visit"],
+                "station": _array(s["station"]).tolist(),
+                "reason": s["reason"],
+                "message": s["message"],
+            }
+            for s in t.get(SKIPPED, [])
+        ],
+        "repeatability_mm": {
+            c: (1e3 * (last_position[c] - first_position[c])).tolist()
+            for c in first_position
+            if sum(e["camera"] == c for e in calibrations) > 1
+        },
+        "parent_final_error_mm": final_error,
+        "distance_travelled_m": fixes[-1]["distance_travelled"] if fixes else 0.0,
+        "parent_track": {"estimated": estimated, "true": true_track},
+        "failures": dict(sorted(failures.items())),
+    }

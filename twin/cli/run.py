@@ -1,0 +1,119 @@
+"""``twin run``: the whole calibration campaign of a scenario, in the twin."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from rich.console import Console
+from rich.live import Live
+from rich.table import Table
+
+from twin.cli.scene import load_or_report
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``run`` subcommand."""
+    p = sub.add_parser(
+        "run",
+        help="run the calibration campaign of a scenario in the twin",
+        description=(
+            "Run the paper's calibration campaign on a scenario: reference data sets from the "
+            "first station, CPS travel along the route, a calibration at every visit. Writes "
+            "DIR/log.mcap (every reading, as it arrives), DIR/results.json, DIR/cameras/, "
+            "DIR/figures/ and DIR/report.md."
+        ),
+    )
+    p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
+    p.add_argument(
+        "--fidelity",
+        choices=("render", "geometric"),
+        default="render",
+        help="render: robots driven in MuJoCo, rendered images, LED detection (default); "
+        "geometric: robots placed with a stopping error, LEDs projected with detection noise",
+    )
+    p.add_argument("--seed", type=int, help="root seed of the run (default: the scenario's)")
+    p.add_argument("--out", type=Path, help="output folder (default: out/SCENARIO-FIDELITY)")
+    p.add_argument("--no-noise", action="store_true", help="switch every noise source off")
+    p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
+    p.set_defaults(func=run)
+
+
+class _Display:
+    """A one-line live status: stage, robot, camera, points, calibrations, elapsed time."""
+
+    def __init__(self, live: Live) -> None:
+        self.live = live
+        self.t0 = time.perf_counter()
+
+    def __call__(self, p: object) -> None:
+        grid = Table.grid(padding=(0, 2))
+        elapsed = time.perf_counter() - self.t0
+        grid.add_row(
+            f"[bold]{p.stage}[/bold]",  # type: ignore[attr-defined]
+            f"robot {p.robot or '-'}",  # type: ignore[attr-defined]
+            f"camera {p.camera or '-'}",  # type: ignore[attr-defined]
+            f"points {p.points}",  # type: ignore[attr-defined]
+            f"calibrated {p.calibrated}",  # type: ignore[attr-defined]
+            f"{elapsed:6.1f} s",
+        )
+        self.live.update(grid)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run; exit code 0, 2 for an invalid scenario, 1 when no camera was calibrated."""
+    console = Console(highlight=False, soft_wrap=True)
+    sc = load_or_report(args.scenario, console)
+    if sc is None:
+        return 2
+    from twin.runner import run_scenario
+
+    out = args.out or Path("out") / f"{sc.name}-{args.fidelity}"
+    console.print(f"running [bold]{sc.name}[/bold] at the {args.fidelity} fidelity into {out}")
+    with Live(console=console, refresh_per_second=4, transient=True) as live:
+        results = run_scenario(
+            sc,
+            out,
+            fidelity=args.fidelity,
+            seed=args.seed,
+            noise=not args.no_noise,
+            progress=_Display(live),
+            report=not args.no_report,
+        )
+    print_results(results, console)
+    if not args.no_report:
+        console.print(f"report: {out / 'report.md'}")
+    return 0 if results["calibrations"] else 1
+
+
+def print_results(results: dict, console: Console) -> None:
+    """The calibrations as a Table III-like table, and the failures."""
+    table = Table(title=f"{results['scenario']} ({results['fidelity']}, seed {results['seed']})")
+    for col in ("camera", "visit", "travel [m]", "points"):
+        table.add_column(col, justify="right")
+    for col in ("world px", "world 3D [mm]", "local px", "local 3D [mm]", "position err [mm]"):
+        table.add_column(col, justify="right")
+    for c in results["calibrations"]:
+        w, loc, truth = c["errors"]["world"], c["errors"]["local"], c["truth"]
+        table.add_row(
+            c["camera"],
+            str(c["visit"]),
+            f"{c['distance_travelled_m']:.1f}",
+            str(c["points"]),
+            "-" if w is None else f"{w['pixel_mean']:.2f}",
+            "-" if w is None else f"{w['error_3d_mean_mm']:.2f}",
+            "-" if loc is None else f"{loc['pixel_mean']:.2f}",
+            "-" if loc is None else f"{loc['error_3d_mean_mm']:.2f}",
+            "-" if truth is None else f"{truth['position_error_mm']:.1f}",
+        )
+    console.print(table)
+    for s in results["skipped_visits"]:
+        console.print(f"skipped {s['camera']} visit {s['visit']}: {s['reason']} ({s['message']})")
+    if results["failures"]:
+        console.print("failures: " + ", ".join(f"{k} {v}" for k, v in results["failures"].items()))
+    if results["parent_final_error_mm"] is not None:
+        console.print(
+            f"parent travelled {results['distance_travelled_m']:.1f} m; final position error "
+            f"{results['parent_final_error_mm']:.1f} mm; wall time {results['wall_time_s']:.1f} s"
+        )

@@ -1,0 +1,150 @@
+"""Run the calibration campaign of a scenario in the twin, and write everything it gives.
+
+This is the one place where the backend is chosen: a simulated rig at the ``render`` or
+``geometric`` fidelity (:mod:`twin.sim.rig`) is built on the scenario's world, wrapped so
+that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
+:class:`twin.campaign.Campaign`. The simulation's truth (camera poses, the parent's true
+pose at every CPS fix) is written to the log beside the readings, under ``/truth/``. The
+results are then computed from the log alone (:func:`twin.campaign.results.results_from_log`):
+
+- ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
+  calibration), ``DIR/figures/`` and ``DIR/report.md``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
+from calib.io.camera_files import camera_from_dict, camera_to_dict, save_camera
+from twin.campaign import Campaign, Progress
+from twin.campaign.records import PARENT_FIX
+from twin.campaign.results import META, SUMMARY, TRUTH_CAMERA, TRUTH_PARENT, results_from_log
+from twin.hal.recording import Recorder, recorded
+from twin.record import McapRecorder, read_log
+from twin.report import write_report
+from twin.scenario import Scenario, load_scenario
+from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
+from twin.sim.scene import build_world
+
+
+class _TruthTap:
+    """Passes records on, and writes the parent's true pose beside each CPS fix."""
+
+    def __init__(self, inner: Recorder, sim: SimRig) -> None:
+        self.inner, self.sim = inner, sim
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        self.inner.record(topic, record, timestamp)
+        if topic == PARENT_FIX:
+            position, _ = self.sim.world.instrument_pose(self.sim.rig.parent.name)
+            self.inner.record(
+                TRUTH_PARENT,
+                {
+                    "index": record.index,  # type: ignore[attr-defined]
+                    "translation": self.sim.frame.points(position).tolist(),
+                },
+                timestamp,
+            )
+
+
+def run_scenario(
+    scenario: Scenario | str | Path,
+    out_dir: str | Path,
+    *,
+    fidelity: str = "render",
+    seed: int | None = None,
+    noise: bool = True,
+    progress: Callable[[Progress], None] | None = None,
+    report: bool = True,
+) -> dict[str, Any]:
+    """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
+
+    Args:
+        scenario: a scenario or the path of its file.
+        out_dir: where ``log.mcap``, ``results.json``, ``cameras/``, ``figures/`` and
+            ``report.md`` go (created if needed).
+        fidelity: ``render`` or ``geometric``.
+        seed: the run's root seed (default: the scenario's).
+        noise: False switches every noise source off (:meth:`Scenario.without_noise`).
+        progress: called with each :class:`Progress` of the campaign.
+        report: write the figures and ``report.md``.
+
+    Returns:
+        The results (also in ``results.json``).
+    """
+    if fidelity not in FIDELITIES:
+        raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if seed is not None:
+        sc = sc.model_copy(update={"seed": int(seed)})
+    if not noise:
+        sc = sc.without_noise()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / "log.mcap"
+    t0 = time.perf_counter()
+    with McapRecorder(log_path) as log:
+        log.record(
+            META,
+            {
+                "scenario": sc.name,
+                "scenario_file": sc.source,
+                "fidelity": fidelity,
+                "seed": sc.seed,
+                "noise": noise,
+                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            },
+            0.0,
+        )
+        world = build_world(sc)
+        sim = build_sim_rig(world, fidelity)
+        try:
+            for cam in world.camera_names:
+                truth = sim.frame.camera(world.camera(cam))
+                log.record(TRUTH_CAMERA, {"name": cam, "camera": camera_to_dict(truth)}, 0.0)
+            tap = _TruthTap(log, sim)
+            rig = recorded(sim.rig, tap)
+            Campaign(rig, sc, tap, progress).run()
+            wall = time.perf_counter() - t0
+            timings = dict(sim.rig.timings)
+            if "observe" in timings:
+                timings["detection"] = max(timings.pop("observe") - timings.get("render", 0.0), 0.0)
+            timings["other"] = max(wall - sum(timings.values()), 0.0)
+            log.record(
+                SUMMARY,
+                {"wall_time_s": wall, "timings_s": timings},
+                rig.clock.now(),
+            )
+        finally:
+            sim.close()
+    results = results_from_log(read_log(log_path).messages, sc.campaign.pixel_size_mm)
+    (out / "results.json").write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
+    write_cameras(results, read_log(log_path).messages, out / "cameras")
+    if report:
+        write_report(sc, results, out)
+    return results
+
+
+def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:
+    """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
+    ``.camera_info.yaml`` (ROS) in ``folder``."""
+    from twin.campaign.records import CALIBRATION
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for m in messages:
+        if m.topic != CALIBRATION:
+            continue
+        camera = camera_from_dict(m.data["camera_model"], "calibration")
+        stem = f"{m.data['camera']}_visit{m.data['visit']}"
+        for suffix in (".json", ".yaml", ".camera_info.yaml"):
+            path = folder / f"{stem}{suffix}"
+            save_camera(camera, path, name=m.data["camera"])
+            written.append(path)
+    return written
