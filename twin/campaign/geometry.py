@@ -34,6 +34,18 @@ def free(scenario: Scenario, points_xy: ArrayLike, clearance: float = ROBOT_CLEA
     return ok
 
 
+def path_clear(
+    scenario: Scenario, start_xy: ArrayLike, end_xy: ArrayLike, clearance: float = ROBOT_CLEARANCE
+) -> bool:
+    """Whether a robot can drive straight from ``start_xy`` to ``end_xy`` keeping
+    ``clearance`` from walls and obstacles (checked every 0.1 m), m."""
+    a = np.asarray(start_xy, dtype=float).reshape(2)
+    b = np.asarray(end_xy, dtype=float).reshape(2)
+    n = max(2, int(np.ceil(np.linalg.norm(b - a) / 0.1)) + 1)
+    pts = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+    return bool(free(scenario, pts, clearance).all())
+
+
 def sight_clear(scenario: Scenario, starts: ArrayLike, ends: ArrayLike) -> NDArray[np.bool_]:
     """(N,) whether the map's obstacles leave each 3D segment free."""
     a = np.asarray(starts, dtype=float).reshape(-1, 3)

@@ -29,10 +29,11 @@ from numpy.typing import NDArray
 from calib.detection.sequence import SwitchingSequence
 from calib.io.camera_files import camera_to_dict
 from calib.tsai import calibrate_tsai
-from twin.campaign.geometry import unhidden_yaw
+from twin.campaign.geometry import ROBOT_CLEARANCE, free, path_clear, unhidden_yaw
 from twin.campaign.plan import Stop, ViewStop, formation, leg_goals, tour, view_stops
 from twin.campaign.records import (
     CALIBRATION,
+    DATASET,
     FAILURE,
     PARENT_FIX,
     POINT,
@@ -40,6 +41,7 @@ from twin.campaign.records import (
     STAGE,
     CalibrationRecord,
     DataPoint,
+    DataSet,
     Failure,
     ParentFix,
     SkippedVisit,
@@ -98,8 +100,14 @@ class CampaignAborted(RuntimeError):
     """The group cannot go on (CPS lost both children)."""
 
 
+ROUTE_TOLERANCE = 0.5
+"""A robot farther than this from the route (m) returns to it before following it."""
+
 TURNS_DEG = (30.0, -60.0)
 """How a child turns, one after the other, when the parent cannot measure all its prisms."""
+
+SIDESTEPS = (0.4, -0.8)
+"""How the parent steps sideways, one after the other, m, when it cannot fix its pose."""
 
 
 class Campaign:
@@ -292,8 +300,26 @@ class Campaign:
     def _drive_along(self, base: MobileBase, s_from: float, s_to: float, goal: Stop) -> bool:
         """Drive a base along the route's corners between two arc lengths, then to ``goal``."""
         self._tell(robot=base.name)
-        for corner in self.path.vertices_between(s_from, s_to):
-            if not base.drive_to(corner).reached:
+        here = base.odometry().pose[:2]
+        corners = self.path.vertices_between(s_from, s_to)
+        first = corners[0] if corners else goal.xy
+        entry = self.path.at(s_from)
+        # Off the route (in a camera's view, say) with an obstacle in the way: back onto the
+        # route first.
+        blocked = not path_clear(self.sc, here, first, 0.3)
+        far = np.linalg.norm(here - entry) > ROUTE_TOLERANCE
+        if blocked and far and not base.drive_to(entry).reached:
+            return False
+        waypoints = list(corners)
+        last = waypoints[-1] if waypoints else here
+        on_route = self.path.at(s_to)
+        if (
+            not path_clear(self.sc, last, goal.xy, 0.35)
+            and np.linalg.norm(on_route - goal.xy) > 0.1
+        ):
+            waypoints.append(on_route)  # along the route, then sideways to the goal
+        for point in waypoints:
+            if not base.drive_to(point).reached:
                 return False
         return base.drive_to(goal.xy, goal.yaw).reached
 
@@ -349,11 +375,22 @@ class Campaign:
 
     def _fix_parent(self) -> None:
         """The parent moved: measure the stationary children, solve its pose."""
-        odo = self.rig.parent.odometry()
         z = float(self.cps.parent.translation[2])
-        guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
-        self.rig.total_station.read_inclination()
-        for attempt in range(2):
+        for attempt in range(2 + len(SIDESTEPS)):
+            if attempt >= 2:
+                # A child's prism stays hidden from here: CPS solves the parent's pose
+                # wherever it stands, so it steps aside and measures again.
+                step = SIDESTEPS[attempt - 2]
+                odo = self.rig.parent.odometry()
+                side = np.array([-math.sin(odo.yaw), math.cos(odo.yaw)]) * step
+                target = odo.pose[:2] + side
+                if not free(self.sc, target[None], ROBOT_CLEARANCE)[0]:
+                    continue
+                self._fail("parent_stepped_aside", f"{step:+.1f} m to see the children", "parent")
+                self.rig.parent.drive_to(target, odo.yaw)
+            odo = self.rig.parent.odometry()
+            guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
+            self.rig.total_station.read_inclination()
             obs = []
             for child in self.children:
                 o = self._measure(child, guess)
@@ -474,6 +511,8 @@ class Campaign:
             pix += list(seen.pixels)
         self._tell(points=len(pts))
         n = min(target, len(pts))
+        done = DataSet(self._now(), dataset, camera, visit, n)
+        self.rec.record(DATASET, done, done.timestamp)
         return np.array(pts[:n]).reshape(-1, 3), np.array(pix[:n]).reshape(-1, 2), points
 
     def _skip(self, camera: str, visit: int, station: NDArray, reason: str, message: str) -> None:

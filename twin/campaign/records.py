@@ -15,7 +15,7 @@ POINT = "/campaign/point"
 CALIBRATION = "/campaign/calibration"
 FAILURE = "/campaign/failure"
 SKIPPED = "/campaign/skipped_visit"
-SUMMARY = "/campaign/summary"
+DATASET = "/campaign/dataset"
 
 
 @dataclass(frozen=True)
@@ -134,3 +134,20 @@ class SkippedVisit:
     station: NDArray[np.float64]
     reason: str
     message: str = ""
+
+
+@dataclass(frozen=True)
+class DataSet:
+    """A data set is complete: the first ``points`` LED points of its data points (in the
+    order recorded) are the set.
+
+    Attributes:
+        timestamp: s. dataset: ``reference`` or ``visit``. camera, visit: which.
+        points: LED points in the set.
+    """
+
+    timestamp: float
+    dataset: str
+    camera: str
+    visit: int
+    points: int

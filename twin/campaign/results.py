@@ -22,7 +22,7 @@ from calib.camera import TsaiCamera
 from calib.io.camera_files import camera_from_dict
 from calib.metrics import evaluate
 from calib.paper_units import kappa1_px_to_mm
-from twin.campaign.records import CALIBRATION, FAILURE, PARENT_FIX, POINT, SKIPPED
+from twin.campaign.records import CALIBRATION, DATASET, FAILURE, PARENT_FIX, POINT, SKIPPED
 
 META = "/run/meta"
 """Topic of the run's description (scenario, fidelity, seed), written first."""
@@ -111,11 +111,13 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
     summary = (t.get(SUMMARY) or [None])[-1]
     points = t.get(POINT, [])
     references: dict[str, tuple[NDArray, NDArray]] = {}
+    sizes = {(d["dataset"], d["camera"], d["visit"]): d["points"] for d in t.get(DATASET, [])}
     for cam in dict.fromkeys(p["camera"] for p in points if p["dataset"] == "reference"):
         pts, pix, _ = _points(
             [p for p in points if p["dataset"] == "reference" and p["camera"] == cam]
         )
-        references[cam] = (pts, pix)
+        n = sizes.get(("reference", cam, 0), len(pts))
+        references[cam] = (pts[:n], pix[:n])
     truths = {d["name"]: camera_from_dict(d["camera"], "truth") for d in t.get(TRUTH_CAMERA, [])}
 
     calibrations = []
