@@ -30,9 +30,7 @@ $(VENV)/.stamp-dev: pyproject.toml
 	touch $(VENV)/.stamp-run $@
 
 run: $(VENV)/.stamp-run gl-libs
-	$(VENV)/bin/twin calibrate examples/camera1_points.csv --image-size 320 240 \
-	    --units mm --pixel-size 0.015 \
-	    --out out/camera1.json --json out/camera1_result.json
+	$(VENV)/bin/twin run scenarios/paper_hall.toml --fidelity render --out out/paper_hall
 
 test: $(VENV)/.stamp-dev gl-libs
 	$(VENV)/bin/ruff check .

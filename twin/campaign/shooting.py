@@ -62,6 +62,9 @@ def _swept(aim: NDArray[np.float64], degrees: float) -> NDArray[np.float64]:
     return rot_z(math.radians(degrees)) @ aim
 
 
+SEARCH_DEG = (8.0, -8.0, 12.0, -12.0, 16.0, -16.0, 22.0, -22.0, 28.0, -28.0, 35.0, -35.0)
+"""Horizontal offsets from a child's predicted place searched when no prism answered, deg."""
+
 DISTINCT = 0.02
 """Two shots closer than this, m, locked the same prism."""
 
@@ -165,6 +168,14 @@ def shoot_cubes(
         add(_shoot(station, predicted[k], retries, report, k))
     if cubes_body is None:
         return shots if len(shots) == len(predicted) else None
+    if not shots:
+        # The child is not where it was thought to be (its odometry drifted): search.
+        centre = predicted.mean(axis=0)
+        for degrees in SEARCH_DEG:
+            report("prism_search", f"searching {degrees:+.0f} deg from the prediction", {})
+            add(_shoot(station, _swept(centre, degrees), 0, report, 0))
+            if shots:
+                break
     for _ in range(3):
         if len(shots) in (0, 3):
             break
