@@ -18,9 +18,9 @@ failure is recorded (``/campaign/failure``) with its kind.
 from __future__ import annotations
 
 import math
-import time
 from collections import Counter
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,6 +60,7 @@ from twin.localization.sequence import CpsSequence
 from twin.scenario.checks import station_visibility
 from twin.scenario.geometry import floor_view
 from twin.scenario.schema import Scenario
+from twin.timing import timed
 
 
 @dataclass(frozen=True)
@@ -174,8 +175,8 @@ class Campaign:
         self._stage = Progress(**fields)
         self.progress(self._stage)
 
-    def _timed_solve(self) -> _Timer:
-        return _Timer(self.rig.timings, "solving")
+    def _timed_solve(self) -> AbstractContextManager[None]:
+        return timed(self.rig.timings, "solving")
 
     # -- the run ---------------------------------------------------------------------------
     def run(self) -> CampaignOutcome:
@@ -337,7 +338,7 @@ class Campaign:
             last = len(goals) == 1
             next_xy = station if last else self.path.at(s_next)
             z = float(self.cps.parent.translation[2])
-            with _Timer(self.rig.timings, "planning"):
+            with timed(self.rig.timings, "planning"):
                 stops = formation(
                     self.sc, self.path, s_next, parent_xy, next_xy, direction, self.cfg.formation, z
                 )
@@ -429,7 +430,7 @@ class Campaign:
         child = self._choose_child(camera)
         anchor = next(c for c in self.children if c != child)
         parent = self.cps.parent
-        with _Timer(self.rig.timings, "planning"):
+        with timed(self.rig.timings, "planning"):
             candidates = view_stops(
                 self.sc,
                 self.sc.camera(camera).tsai(),
@@ -453,7 +454,7 @@ class Campaign:
             stop = plan.pop(0).stop
             self._tell(robot=child, camera=camera, points=len(pts))
             # Turn the child where its own mast, arms or prisms would hide a prism.
-            with _Timer(self.rig.timings, "planning"):
+            with timed(self.rig.timings, "planning"):
                 yaw = unhidden_yaw(
                     stop.xy,
                     stop.yaw,
@@ -562,16 +563,3 @@ def _solver(rig: Rig) -> str:
     spec, tilt = rig.total_station.spec, rig.total_station.inclinometer
     sigmas = (spec.distance_sigma(1.0), spec.angle_sigma, 1.0 if tilt is None else tilt.sigma)
     return "wls" if min(sigmas) > 0 and len(rig.children) > 1 else "closed_form"
-
-
-class _Timer:
-    """Adds a block's wall time to ``timings[key]``."""
-
-    def __init__(self, timings: dict[str, float], key: str) -> None:
-        self.timings, self.key = timings, key
-
-    def __enter__(self) -> None:
-        self.t0 = time.perf_counter()
-
-    def __exit__(self, *exc: object) -> None:
-        self.timings[self.key] = self.timings.get(self.key, 0.0) + time.perf_counter() - self.t0

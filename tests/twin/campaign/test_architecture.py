@@ -8,7 +8,14 @@ from pathlib import Path
 import twin.campaign
 
 CAMPAIGN = Path(twin.campaign.__file__).parent
-ALLOWED = ("twin.hal", "twin.localization", "twin.instruments", "twin.scenario", "twin.campaign")
+ALLOWED = (
+    "twin.hal",
+    "twin.localization",
+    "twin.instruments",
+    "twin.scenario",
+    "twin.campaign",
+    "twin.timing",
+)
 FORBIDDEN = ("twin.sim", "twin.drivers", "mujoco", "twin.runner", "twin.record")
 
 

@@ -18,8 +18,8 @@ from twin.localization.planar import wrap_angle
 from twin.scenario.geometry import inside_obstacle, inside_space
 from twin.scenario.schema import StoppingConfig
 from twin.sim.rig.frames import WorldFrame
-from twin.sim.rig.timing import timed
 from twin.sim.scene import World
+from twin.timing import timed
 
 UNREACHABLE_RADIUS = 0.5
 """A goal within this distance of a scenario's ``faults.unreachable`` point cannot be

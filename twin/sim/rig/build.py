@@ -13,9 +13,9 @@ from twin.sim.rig.base import GeometricBase, RenderBase
 from twin.sim.rig.clock import SimClock
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
-from twin.sim.rig.timing import timed
 from twin.sim.rig.total_station import SimTotalStation
 from twin.sim.scene import World
+from twin.timing import timed
 
 FIDELITIES = ("render", "geometric")
 """``render``: robots driven in MuJoCo, rendered images, LEDs found by subtraction.

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from twin.hal.devices import Clock
-from twin.sim.rig.timing import timed
 from twin.sim.scene import World
+from twin.timing import timed
 
 
 class SimClock(Clock):

@@ -21,9 +21,9 @@ from twin.sim.capture import (
     led_visible_fraction,
     project_or_nan,
 )
-from twin.sim.rig.timing import timed
 from twin.sim.robots import N_LEDS
 from twin.sim.scene import World
+from twin.timing import timed
 
 
 class SimLeds(MarkerLeds):

@@ -1,4 +1,4 @@
-"""Where a simulated run's time goes: wall seconds accumulated by activity."""
+"""Where a run's time goes: wall seconds accumulated by activity (no backend imports)."""
 
 from __future__ import annotations
 
