@@ -78,6 +78,8 @@ class DriveStatus(enum.Enum):
     """The base touched something and stopped."""
     TIMEOUT = "timeout"
     """The base did not arrive in the time allowed and stopped."""
+    FELL_OVER = "fell_over"
+    """The base tipped over; it cannot go on without help."""
 
 
 @dataclass(frozen=True)

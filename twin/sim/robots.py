@@ -147,6 +147,12 @@ class RobotHandle:
         yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
         return np.array([q[0], q[1], yaw])
 
+    def tilt(self, data: mujoco.MjData) -> float:
+        """Angle between the body's z axis and the world's vertical, rad (0 when upright)."""
+        w, x, y, z = data.qpos[self.qpos + 3 : self.qpos + 7]
+        cos_tilt = 1.0 - 2.0 * (x * x + y * y)
+        return float(np.arccos(np.clip(cos_tilt, -1.0, 1.0)))
+
     def wheel_angles(self, data: mujoco.MjData) -> tuple[float, float]:
         """Mean (left, right) wheel angles, rad."""
         left = float(np.mean([data.qpos[i] for i in self.left_qpos]))

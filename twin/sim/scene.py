@@ -38,6 +38,9 @@ LED_ON_EMISSION = 5.0
 # contact is the same collision (contacts flicker while a robot pushes against something).
 COLLISION_DEBOUNCE_TICKS = 25
 
+FELL_OVER_TILT = np.radians(30.0)
+"""A robot whose body leans further than this from the vertical has fallen over, rad."""
+
 # Most casts of one ray that may step past geoms of the robot it ignores.
 MAX_RAY_RECASTS = 64
 
@@ -93,7 +96,7 @@ class DriveResult:
 
     Attributes:
         robot: the robot's name.
-        status: ``reached``, ``collision`` or ``timeout``.
+        status: ``reached``, ``collision``, ``fell_over`` or ``timeout``.
         pose: (3,) true final pose (x, y, yaw), m and rad.
         position_error: distance from the goal position, m (true pose).
         duration: simulated time taken, s.
@@ -397,7 +400,7 @@ class World:
         pose_source: str = "truth",
         tolerance: DriveTolerance | None = None,
     ) -> DriveResult:
-        """Drive ``robot`` to a goal and wait until it stops, collides or times out.
+        """Drive ``robot`` to a goal and wait until it stops, collides, falls over or times out.
 
         The other robots keep their current commands. On a collision the robot is stopped.
 
@@ -419,6 +422,10 @@ class World:
             if mine:
                 self.stop(robot)
                 status = "collision"
+                break
+            if h.tilt(self.data) > FELL_OVER_TILT:
+                self.stop(robot)
+                status = "fell_over"
                 break
             if ctl.done:
                 status = "reached"

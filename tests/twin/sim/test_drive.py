@@ -207,3 +207,35 @@ def test_direct_commands_keep_the_speed_and_acceleration_limits(robot, via):
     assert np.diff(rates).min() >= -p.max_yaw_accel * dt * (1 + 1e-6)
     world.stop(robot)
     assert world.body_velocity_command(robot) == (0.0, 0.0)
+
+
+def test_child_brakes_from_top_speed_off_a_floor_patch_and_stays_upright():
+    # The hall's tilted patch east of the island ends in a 2 mm ledge; a child crossing it
+    # while braking from top speed must not pitch onto its nose (its 1.4 m mast makes that
+    # the worst case of the route).
+    world = build_world(scenario("paper_hall"))
+    world.place("child2", (40.0, 0.0), -0.5)
+    h = world.robots["child2"]
+    ctl = world.drive("child2", (40.0, 4.0))
+    worst = 0.0
+    while not ctl.done and world.time < 30.0:
+        world.step()
+        worst = max(worst, h.tilt(world.data))
+    assert ctl.done
+    # The wheels dropping off the ledge while the caster is still on the patch pitch the
+    # body by 2.2 mm / 0.19 m = 0.7 deg; a robot tipping onto its nose passes 30 deg.
+    assert math.degrees(worst) < 2.0
+    assert np.linalg.norm(world.robot_pose("child2")[:2] - (40.0, 4.0)) < 0.03
+
+
+def test_a_robot_that_falls_over_stops_and_says_so():
+    world = build_world(scenario("smoke"))
+    h = world.robots["child1"]
+    # A load high up in front of the axle: the robot tips onto its nose as it pulls away.
+    world.model.body_ipos[h.body] = (0.25, 0.0, 1.0)
+    start = world.robot_pose("child1")
+    result = world.drive_to("child1", start[:2] + (3.0 * math.cos(start[2]), 3.0 * math.sin(start[2])))
+    assert result.status == "fell_over"
+    assert not result.reached
+    assert math.degrees(h.tilt(world.data)) > 30.0
+    assert world.moving() == []

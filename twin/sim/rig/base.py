@@ -148,6 +148,8 @@ class RenderBase(_SimBase):
         message = ""
         if why:
             status, message = DriveStatus.BLOCKED, why
+        elif status is DriveStatus.FELL_OVER:
+            message = "tipped over"
         elif result.collisions:
             c = result.collisions[0]
             message = f"touched {c.other} at t = {c.time:.1f} s"
