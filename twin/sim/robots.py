@@ -149,7 +149,7 @@ class RobotHandle:
 
     def tilt(self, data: mujoco.MjData) -> float:
         """Angle between the body's z axis and the world's vertical, rad (0 when upright)."""
-        w, x, y, z = data.qpos[self.qpos + 3 : self.qpos + 7]
+        x, y = data.qpos[self.qpos + 4 : self.qpos + 6]
         cos_tilt = 1.0 - 2.0 * (x * x + y * y)
         return float(np.arccos(np.clip(cos_tilt, -1.0, 1.0)))
 

@@ -233,8 +233,8 @@ def test_a_robot_that_falls_over_stops_and_says_so():
     h = world.robots["child1"]
     # A load high up in front of the axle: the robot tips onto its nose as it pulls away.
     world.model.body_ipos[h.body] = (0.25, 0.0, 1.0)
-    start = world.robot_pose("child1")
-    result = world.drive_to("child1", start[:2] + (3.0 * math.cos(start[2]), 3.0 * math.sin(start[2])))
+    x, y, yaw = world.robot_pose("child1")
+    result = world.drive_to("child1", (x + 3.0 * math.cos(yaw), y + 3.0 * math.sin(yaw)))
     assert result.status == "fell_over"
     assert not result.reached
     assert math.degrees(h.tilt(world.data)) > 30.0
