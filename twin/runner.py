@@ -29,6 +29,7 @@ from twin.hal.recording import Recorder, recorded
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
+from twin.scenario.schema import Noise
 from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
 from twin.sim.scene import build_world
 
@@ -62,6 +63,7 @@ def run_scenario(
     noise: bool = True,
     progress: Callable[[Progress], None] | None = None,
     report: bool = True,
+    advertised_noise: Noise | None = None,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
 
@@ -74,6 +76,9 @@ def run_scenario(
         noise: False switches every noise source off (:meth:`Scenario.without_noise`).
         progress: called with each :class:`Progress` of the campaign.
         report: write the figures and ``report.md``.
+        advertised_noise: the noise the simulated instrument reports to the campaign
+            (default: the noise it simulates); an error budget simulates one source alone
+            while the campaign weighs its data as in the real run.
 
     Returns:
         The results (also in ``results.json``).
@@ -103,7 +108,7 @@ def run_scenario(
             0.0,
         )
         world = build_world(sc)
-        sim = build_sim_rig(world, fidelity)
+        sim = build_sim_rig(world, fidelity, advertised=advertised_noise)
         try:
             for cam in world.camera_names:
                 truth = sim.frame.camera(world.camera(cam))

@@ -8,6 +8,7 @@ import numpy as np
 
 from twin.hal.devices import MobileBase
 from twin.hal.rig import Rig
+from twin.scenario.schema import Noise
 from twin.sim.capture import CameraSimulator
 from twin.sim.rig.base import GeometricBase, RenderBase
 from twin.sim.rig.clock import SimClock
@@ -53,7 +54,9 @@ class SimRig:
             self.simulator.close()
 
 
-def build_sim_rig(world: World, fidelity: str, seed: int | None = None) -> SimRig:
+def build_sim_rig(
+    world: World, fidelity: str, seed: int | None = None, advertised: Noise | None = None
+) -> SimRig:
     """The devices of ``world``'s scenario at ``fidelity``.
 
     Args:
@@ -62,6 +65,8 @@ def build_sim_rig(world: World, fidelity: str, seed: int | None = None) -> SimRi
         seed: root of the rig's random streams (default the scenario's seed). The instrument,
             each robot's stopping error, the LED detection and the injected faults have
             their own streams, so switching one off changes nothing else.
+        advertised: the noise the instrument reports to the campaign (default: the
+            scenario's, which it simulates).
     """
     if fidelity not in FIDELITIES:
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
@@ -96,6 +101,9 @@ def build_sim_rig(world: World, fidelity: str, seed: int | None = None) -> SimRi
         clock,
         lost_lock_rate=faults.lost_lock_rate,
         fault_rng=fault_rng,
+        advertised=None
+        if advertised is None
+        else (advertised.total_station.spec(), advertised.inclinometer.spec()),
     )
     bases: dict[str, MobileBase] = {}
     for name in names:

@@ -33,6 +33,10 @@ class SimTotalStation(TotalStation):
         clock: the rig's clock (timestamps).
         lost_lock_rate: probability that a shot fails to lock although a prism is there.
         fault_rng: random generator of the injected faults.
+        advertised: the specification the instrument reports (:attr:`spec`,
+            :attr:`inclinometer`), by which the campaign weighs its shots; default ``spec``
+            and ``inclinometer``. An error budget simulates one noise source alone while
+            the instrument still advertises them all.
     """
 
     def __init__(
@@ -46,6 +50,7 @@ class SimTotalStation(TotalStation):
         *,
         lost_lock_rate: float = 0.0,
         fault_rng: np.random.Generator | None = None,
+        advertised: tuple[TotalStationSpec, InclinometerSpec] | None = None,
     ) -> None:
         self.world = world
         self.parent = parent
@@ -57,14 +62,15 @@ class SimTotalStation(TotalStation):
         self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
         self._aim: np.ndarray | None = None
         self.children = [c.name for c in world.scenario.robots.children]
+        self._advertised = advertised or (spec, inclinometer)
 
     @property
     def spec(self) -> TotalStationSpec:
-        return self._spec
+        return self._advertised[0]
 
     @property
     def inclinometer(self) -> InclinometerSpec | None:
-        return self._inclinometer
+        return self._advertised[1]
 
     def point(self, target_level: ArrayLike) -> None:
         aim = np.asarray(target_level, dtype=float).reshape(3)
