@@ -20,12 +20,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from calib.io.camera_files import camera_from_dict, camera_to_dict, save_camera
 from twin.campaign import Campaign, Progress
 from twin.campaign.records import PARENT_FIX
 from twin.campaign.results import META, SUMMARY, TRUTH_CAMERA, TRUTH_PARENT, results_from_log
 from twin.hal.recording import Recorder, recorded
+from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
@@ -107,7 +110,7 @@ def run_scenario(
             },
             0.0,
         )
-        world = build_world(sc)
+        world = build_world(sc, markers=built_markers(sc))
         sim = build_sim_rig(world, fidelity, advertised=advertised_noise)
         try:
             for cam in world.camera_names:
@@ -134,6 +137,28 @@ def run_scenario(
     if report:
         write_report(sc, results, out)
     return results
+
+
+MARKER_STREAM = 4
+"""Spawn key of the random stream of the marker assemblies' surveying errors."""
+
+
+def built_markers(scenario: Scenario) -> dict[str, MarkerAssembly]:
+    """Each child's marker assembly as built: the scenario's geometry with an error of
+    ``noise.marker_geometry_m`` on every coordinate, drawn from the scenario's seed (none
+    when that is 0)."""
+    sigma = scenario.noise.marker_geometry_m
+    if sigma == 0.0:
+        return {}
+    nominal = scenario.marker.assembly()
+    rng = np.random.default_rng(np.random.SeedSequence(scenario.seed, spawn_key=(MARKER_STREAM,)))
+    out = {}
+    for child in scenario.robots.children:
+        out[child.name] = MarkerAssembly(
+            cubes_body=nominal.cubes_body + sigma * rng.standard_normal(nominal.cubes_body.shape),
+            leds_body=nominal.leds_body + sigma * rng.standard_normal(nominal.leds_body.shape),
+        )
+    return out
 
 
 def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:

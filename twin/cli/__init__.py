@@ -11,7 +11,7 @@ import importlib
 import sys
 
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
-_COMMANDS = ["calibrate", "scene", "render", "detect", "run"]
+_COMMANDS = ["calibrate", "scene", "render", "detect", "run", "montecarlo"]
 
 
 def build_parser() -> argparse.ArgumentParser:

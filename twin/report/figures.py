@@ -63,7 +63,8 @@ def camera_colours(scenario: Scenario | None, results: Results) -> dict[str, str
     return {name: _TAB10[i % len(_TAB10)] for i, name in enumerate(names)}
 
 
-def _save(fig: Figure, path: str | Path) -> Path:
+def save_figure(fig: Figure, path: str | Path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` (folders created) with the Agg canvas."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     FigureCanvasAgg(fig)
@@ -71,7 +72,8 @@ def _save(fig: Figure, path: str | Path) -> Path:
     return path
 
 
-def _no_data(ax: Axes, text: str) -> None:
+def no_data(ax: Axes, text: str) -> None:
+    """Say on ``ax`` that its data are not available."""
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color="0.4")
 
 
@@ -315,7 +317,7 @@ def top_view(scenario: Scenario, results: Results, path: str | Path) -> Path:
     handles, labels = ax.get_legend_handles_labels()
     if handles:
         fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # -- errors against distance -----------------------------------------------------------------
@@ -415,14 +417,14 @@ def error_vs_distance(results: Results, path: str | Path) -> Path:
         ax.set_title(title)
         ax.grid(True, color="0.9")
         if not any_data:
-            _no_data(ax, "no calibrations with errors and distances")
+            no_data(ax, "no calibrations with errors and distances")
             continue
         ax.set_ylim(bottom=0.0)
         top = ax.secondary_xaxis("top")
         top.set_xticks([r["d"] for r in rows], [visit_name(r["key"]) for r in rows])
         top.tick_params(labelsize=7, labelrotation=60)
         ax.legend(fontsize=7, loc="upper left")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # -- residuals -------------------------------------------------------------------------------
@@ -448,7 +450,7 @@ def residuals(results: Results, path: str | Path) -> Path:
     fig = Figure(figsize=(2.8 * ncols + 0.6, 2.9 * nrows + 0.4), layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     if not cals:
-        _no_data(axes[0], "no calibrations")
+        no_data(axes[0], "no calibrations")
         axes[0].set_axis_off()
     for ax, entry in zip(axes, cals, strict=False):
         key = visit_key(entry)
@@ -463,7 +465,7 @@ def residuals(results: Results, path: str | Path) -> Path:
         else:
             lim = 1.0
             ax.set_title(f"{visit_name(key)}: no residuals", fontsize=9)
-            _no_data(ax, "not available")
+            no_data(ax, "not available")
         ax.set_xlim(-lim, lim)
         ax.set_ylim(lim, -lim)
         ax.set_aspect("equal")
@@ -473,4 +475,4 @@ def residuals(results: Results, path: str | Path) -> Path:
     for ax in axes[len(cals) if cals else 1 :]:
         ax.set_axis_off()
     fig.suptitle("Calibration residuals, px", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)

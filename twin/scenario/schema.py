@@ -391,8 +391,9 @@ class _SpecConfig(Frozen):
         return self
 
 
-def _model_from_dataclass(cls: type, doc: str) -> type[_SpecConfig]:
-    """A frozen pydantic model with the fields, types and defaults of dataclass ``cls``."""
+def _model_from_dataclass(cls: type, name: str, doc: str) -> type[_SpecConfig]:
+    """A frozen pydantic model called ``name`` (this module's attribute of that name, so
+    that scenarios pickle) with the fields, types and defaults of dataclass ``cls``."""
     hints = typing.get_type_hints(cls)
     fields: dict[str, typing.Any] = {}
     for f in dataclasses.fields(cls):
@@ -403,20 +404,24 @@ def _model_from_dataclass(cls: type, doc: str) -> type[_SpecConfig]:
         else:
             default = ...
         fields[f.name] = (hints[f.name], default)
-    model = create_model(f"{cls.__name__}Config", __base__=_SpecConfig, **fields)
+    model = create_model(name, __base__=_SpecConfig, __module__=__name__, **fields)
     model.__doc__ = doc
     model._spec_cls = cls
     return model
 
 
 TotalStationConfig = _model_from_dataclass(
-    TotalStationSpec, "Total station noise (SI units); fields and defaults of TotalStationSpec."
+    TotalStationSpec,
+    "TotalStationConfig",
+    "Total station noise (SI units); fields and defaults of TotalStationSpec.",
 )
 InclinometerConfig = _model_from_dataclass(
-    InclinometerSpec, "Inclination sensor noise (SI units); fields of InclinometerSpec."
+    InclinometerSpec,
+    "InclinometerConfig",
+    "Inclination sensor noise (SI units); fields of InclinometerSpec.",
 )
 OdometryConfig = _model_from_dataclass(
-    OdometrySpec, "Wheel odometry drift; fields and defaults of OdometrySpec."
+    OdometrySpec, "OdometryConfig", "Wheel odometry drift; fields and defaults of OdometrySpec."
 )
 
 
@@ -443,6 +448,10 @@ class Noise(Frozen):
             the geometric fidelity (which projects LEDs instead of rendering them). The
             default is what the render fidelity's detector achieves on the twin's 320 x 240
             images (0.05 px RMS per coordinate, measured over 3-14 m).
+        marker_geometry_m: standard deviation of each coordinate of each corner cube and
+            LED of a built marker assembly from the geometry the campaign uses (``[marker]``),
+            m: how well the assembly was surveyed. Each child's assembly gets its own error,
+            drawn once per run. Default 0: the assembly is exactly as specified.
     """
 
     total_station: TotalStationConfig = TotalStationConfig()  # type: ignore[valid-type]
@@ -450,6 +459,7 @@ class Noise(Frozen):
     odometry: OdometryConfig = OdometryConfig()  # type: ignore[valid-type]
     stopping: StoppingConfig = StoppingConfig()
     led_detection_px: Annotated[float, Field(ge=0.0, le=10.0)] = 0.05
+    marker_geometry_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
 
 
 # -- route and calibration plan --------------------------------------------------------------
@@ -667,6 +677,7 @@ class Scenario(Frozen):
             ),
             stopping=StoppingConfig(sigma_xy=0.0, sigma_yaw=0.0),
             led_detection_px=0.0,
+            marker_geometry_m=0.0,
         )
         cameras = tuple(
             c.model_copy(update={"sensor": c.sensor.model_copy(update={"noise": False})})

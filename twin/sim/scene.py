@@ -8,7 +8,7 @@ its start, z up); the floor lies at ``scenario.space.floor_z``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
 from calib.opencv_camera import OpenCVCamera
+from twin.instruments.marker import MarkerAssembly
 from twin.scenario.schema import Scenario
 from twin.sim.camera import add_camera, tsai_from_model
 from twin.sim.drive import DriveController, DriveTolerance
@@ -48,8 +49,15 @@ MAX_RAY_RECASTS = 64
 SIGHT_GROUPS = np.array([1, 0, 1, 0, 0, 0], dtype=np.uint8)
 
 
-def build_spec(scenario: Scenario) -> mujoco.MjSpec:
-    """The scene of ``scenario`` as an uncompiled :class:`mujoco.MjSpec`."""
+def build_spec(
+    scenario: Scenario, markers: Mapping[str, MarkerAssembly] | None = None
+) -> mujoco.MjSpec:
+    """The scene of ``scenario`` as an uncompiled :class:`mujoco.MjSpec`.
+
+    Args:
+        markers: the built marker assembly of some children by name, where it differs
+            from the scenario's ``[marker]`` geometry (a surveying error).
+    """
     spec = mujoco.MjSpec()
     spec.modelname = scenario.name
     spec.compiler.degree = False
@@ -65,7 +73,8 @@ def build_spec(scenario: Scenario) -> mujoco.MjSpec:
     build_space(spec, scenario.space)
     marker = scenario.marker.assembly()
     for robot in scenario.robots.all:
-        attach_robot(spec, robot, scenario.space.floor_z, marker)
+        mine = (markers or {}).get(robot.name, marker)
+        attach_robot(spec, robot, scenario.space.floor_z, mine)
     for cam in scenario.cameras:
         add_camera(spec.worldbody, cam.name, cam.tsai())
     for person in scenario.people:
@@ -122,6 +131,7 @@ class World:
     Args:
         scenario: a validated scenario.
         control_period: period of the drive controllers and odometry updates, s.
+        markers: the built marker assembly of some children (:func:`build_spec`).
 
     Attributes:
         scenario, spec, model, data: the scenario and its MuJoCo objects.
@@ -130,9 +140,14 @@ class World:
         collisions: every collision seen so far, in time order.
     """
 
-    def __init__(self, scenario: Scenario, control_period: float = 0.02) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        control_period: float = 0.02,
+        markers: Mapping[str, MarkerAssembly] | None = None,
+    ) -> None:
         self.scenario = scenario
-        self.spec = build_spec(scenario)
+        self.spec = build_spec(scenario, markers)
         self.model = self.spec.compile()
         self.data = mujoco.MjData(self.model)
         self.substeps = max(1, round(control_period / self.model.opt.timestep))
@@ -621,9 +636,14 @@ class World:
         return path
 
 
-def build_world(scenario: Scenario, control_period: float = 0.02) -> World:
-    """Compose and compile ``scenario`` into a :class:`World` at its start state."""
-    return World(scenario, control_period)
+def build_world(
+    scenario: Scenario,
+    control_period: float = 0.02,
+    markers: Mapping[str, MarkerAssembly] | None = None,
+) -> World:
+    """Compose and compile ``scenario`` into a :class:`World` at its start state
+    (``markers``: as :func:`build_spec`)."""
+    return World(scenario, control_period, markers)
 
 
 __all__ = ["SPACE_GROUP", "Collision", "DriveResult", "World", "build_spec", "build_world"]

@@ -100,3 +100,22 @@ def test_yaml_scenarios_load_the_same(tmp_path):
     from_yaml = load_scenario(path)
     from_toml = load_scenario(SCENARIOS / "smoke.toml")
     assert from_yaml.model_dump(exclude={"source"}) == from_toml.model_dump(exclude={"source"})
+
+
+@pytest.mark.parametrize("name", ["smoke", "paper_hall"])
+def test_a_scenario_pickles_to_an_equal_scenario(name):
+    # Monte-Carlo workers (processes, Ray tasks) receive their scenario pickled.
+    import pickle
+
+    sc = load_scenario(SCENARIOS / f"{name}.toml")
+    back = pickle.loads(pickle.dumps(sc))
+    assert back == sc
+    assert back.noise.total_station.spec() == sc.noise.total_station.spec()
+
+
+def test_marker_geometry_noise_defaults_to_none_and_is_bounded(tmp_path):
+    sc = load_scenario(SCENARIOS / "smoke.toml")
+    assert sc.noise.marker_geometry_m == 0.0
+    assert sc.without_noise().noise.marker_geometry_m == 0.0
+    with pytest.raises(pydantic.ValidationError, match="marker_geometry_m"):
+        sc.model_validate({**sc.model_dump(), "noise": {"marker_geometry_m": -0.001}})

@@ -1,0 +1,125 @@
+"""``twin montecarlo``: Monte-Carlo error budgets of a scenario's campaign."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from twin.cli.scene import load_or_report
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``montecarlo`` subcommand."""
+    p = sub.add_parser(
+        "montecarlo",
+        help="Monte-Carlo error budget of a scenario's campaign",
+        description=(
+            "Run N independent trials of the whole campaign (trial i's seed follows from the "
+            "master seed and i alone), with all noise sources and, for the error budget, "
+            "with each source alone. Writes DIR/trials.csv (a row per trial and camera "
+            "visit, appended as trials finish), DIR/summary.json, DIR/figures/ and "
+            "DIR/report.md."
+        ),
+    )
+    p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
+    p.add_argument("--trials", type=_positive, required=True, help="trials per configuration")
+    p.add_argument("--fidelity", choices=("geometric", "render"), default="geometric")
+    p.add_argument("--workers", type=_positive, default=1, help="processes or Ray CPUs")
+    p.add_argument(
+        "--engine",
+        choices=("local", "ray"),
+        default="local",
+        help="local: a process pool on this machine (default); ray: Ray tasks",
+    )
+    p.add_argument(
+        "--ray-address", help="address of an existing Ray cluster (default: start one here)"
+    )
+    p.add_argument("--seed", type=int, help="master seed (default: the scenario's)")
+    p.add_argument(
+        "--no-budget",
+        action="store_true",
+        help="only trials with every noise source (no one-source runs, no budget)",
+    )
+    p.add_argument("--out", type=Path, help="output folder (default: out/SCENARIO-montecarlo)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run; exit code 0, 2 for an invalid scenario or settings."""
+    console = Console(highlight=False, soft_wrap=True)
+    sc = load_or_report(args.scenario, console)
+    if sc is None:
+        return 2
+    from twin.montecarlo import run_montecarlo
+    from twin.montecarlo.sources import configurations
+
+    if args.ray_address and args.engine != "ray":
+        console.print("[red]error:[/red] --ray-address goes with --engine ray")
+        return 2
+    out = args.out or Path("out") / f"{sc.name}-montecarlo"
+    configs = configurations(not args.no_budget)
+    console.print(
+        f"{args.trials} trials x {len(configs)} configurations of [bold]{sc.name}[/bold] at "
+        f"the {args.fidelity} fidelity, {args.workers} worker(s), engine {args.engine}, "
+        f"into {out}"
+    )
+    columns = (
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=console) as bar:
+        task = bar.add_task("trials", total=None, rate="")
+
+        def show(p: object) -> None:
+            bar.update(
+                task,
+                completed=p.done,  # type: ignore[attr-defined]
+                total=p.total,  # type: ignore[attr-defined]
+                rate=f"{p.rate:.2f}/s",  # type: ignore[attr-defined]
+            )
+
+        try:
+            run_montecarlo(
+                sc,
+                out,
+                args.trials,
+                fidelity=args.fidelity,
+                master_seed=args.seed,
+                budget=not args.no_budget,
+                workers=args.workers,
+                engine=args.engine,
+                ray_address=args.ray_address,
+                resume=args.resume,
+                progress=show,
+            )
+        except (ValueError, FileNotFoundError, RuntimeError) as exc:
+            console.print(f"[red]error:[/red] {exc}")
+            return 2
+        except KeyboardInterrupt:
+            console.print(f"interrupted: the finished trials are in {out}; --resume continues")
+            return 130
+    console.print(f"table: {out / 'trials.csv'}\nreport: {out / 'report.md'}")
+    return 0

@@ -1,0 +1,123 @@
+"""Where trials run: a process pool on this machine, or Ray tasks on a local Ray instance
+or an existing cluster.
+
+An engine maps a function over items and yields the results as they finish (in no fixed
+order); the caller sorts what it keeps. ``close()`` stops what is still running.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import Any
+
+ENGINES = ("local", "ray")
+
+RAY_MISSING = (
+    "--engine ray needs Ray, an optional extra: pip install 'camnet-twin[cluster]' "
+    "(or pip install 'ray>=2.9')"
+)
+
+
+class LocalEngine:
+    """A pool of ``workers`` processes on this machine (one worker: in this process).
+
+    Workers are started with ``spawn`` (a fresh interpreter, safe with MuJoCo's OpenGL);
+    at most twice as many items as workers are in flight, so an interrupt loses little.
+    """
+
+    def __init__(self, workers: int = 1) -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be at least 1, got {workers}")
+        self.workers = workers
+        self._pool: ProcessPoolExecutor | None = None
+
+    def imap_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Any]:
+        if self.workers == 1:
+            for item in items:
+                yield fn(item)
+            return
+        ctx = multiprocessing.get_context("spawn")
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        pending: set[Future] = set()
+        todo = iter(items)
+        try:
+            for item in todo:
+                pending.add(self._pool.submit(fn, item))
+                if len(pending) >= 2 * self.workers:
+                    break
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in done:
+                    nxt = next(todo, None)
+                    if nxt is not None:
+                        pending.add(self._pool.submit(fn, nxt))
+                    yield f.result()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+class RayEngine:
+    """Ray tasks: on a new local Ray instance of ``workers`` CPUs, or on the cluster at
+    ``address`` (``auto`` for the one this machine belongs to).
+
+    The cluster's nodes need this package installed (the same version). A Ray instance
+    this engine started is shut down by :meth:`close`; one it joined is left running.
+    """
+
+    def __init__(self, workers: int | None = None, address: str | None = None) -> None:
+        try:
+            import ray
+        except ImportError as exc:
+            raise RuntimeError(RAY_MISSING) from exc
+        self.ray = ray
+        self._started = False
+        if not ray.is_initialized():
+            kwargs: dict[str, Any] = {
+                "include_dashboard": False,
+                "log_to_driver": False,
+                "configure_logging": False,
+            }
+            if address is None:
+                kwargs["num_cpus"] = workers or os.cpu_count() or 1
+            ray.init(address=address, **kwargs)
+            self._started = True
+
+    def imap_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Any]:
+        remote = self.ray.remote(num_cpus=1, max_retries=2)(fn)
+        refs = [remote.remote(item) for item in items]
+        try:
+            while refs:
+                done, refs = self.ray.wait(refs, num_returns=1)
+                yield self.ray.get(done[0])
+        finally:
+            for ref in refs:
+                self.ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self._started and self.ray.is_initialized():
+            self.ray.shutdown()
+            self._started = False
+
+
+def make_engine(name: str, workers: int = 1, address: str | None = None) -> Any:
+    """The engine called ``name`` (``local`` or ``ray``).
+
+    Raises:
+        ValueError: for an unknown engine, or an address with the local engine.
+        RuntimeError: for ``ray`` when Ray is not installed (saying how to install it).
+    """
+    if name == "local":
+        if address is not None:
+            raise ValueError("--ray-address goes with --engine ray")
+        return LocalEngine(workers)
+    if name == "ray":
+        return RayEngine(workers, address)
+    raise ValueError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")

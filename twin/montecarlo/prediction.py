@@ -1,0 +1,123 @@
+"""What the covariance propagation predicts for a run, read from its log.
+
+The campaign records the parent's pose covariance at every CPS fix (``ParentFix``, from
+:class:`twin.localization.sequence.CpsSequence`) and each calibration's parameter standard
+deviations (Tsai's least squares). Two parts make a calibrated camera's world-frame error:
+
+- the frame transfer: the data of a station are measured from the parent's pose there,
+  so an error ``(d_yaw, d_t)`` of that pose moves the whole calibration rigidly, the
+  camera's centre ``c`` by ``d_t + d_yaw * z x (c - t)``;
+- the calibration itself: the spread of the camera's centre from the pixel noise of the
+  station's own data (Tsai's covariance; it treats the LED positions as exact).
+
+The prediction is first order and treats the two as independent.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from twin.campaign.records import CALIBRATION, PARENT_FIX
+from twin.campaign.results import TRUTH_PARENT
+
+
+def camera_position_covariance(
+    parent_covariance: ArrayLike, parent_translation: ArrayLike, camera_position: ArrayLike
+) -> NDArray[np.float64]:
+    """Covariance of a camera's world position from the parent pose it was calibrated from.
+
+    Args:
+        parent_covariance: (4, 4) covariance of the parent's (yaw, x, y, z), rad and m.
+        parent_translation: (3,) the instrument's centre t in W, m.
+        camera_position: (3,) the camera's centre c in W, m.
+
+    Returns:
+        (3, 3) covariance of the camera's centre, m^2: ``J P J^T`` with
+        ``J = [z x (c - t), I3]``.
+    """
+    p = np.asarray(parent_covariance, dtype=float).reshape(4, 4)
+    lever = np.asarray(camera_position, dtype=float) - np.asarray(parent_translation, float)
+    jac = np.zeros((3, 4))
+    jac[:, 0] = (-lever[1], lever[0], 0.0)
+    jac[:, 1:] = np.eye(3)
+    return jac @ p @ jac.T
+
+
+@dataclass(frozen=True)
+class CalibrationPrediction:
+    """The predicted world-frame position error of one calibration.
+
+    Attributes:
+        camera, visit: which calibration.
+        transfer_rms_m: RMS 3D error from the parent's pose at the station, m.
+        calibration_rms_m: RMS 3D error of the calibration from its own data, m.
+    """
+
+    camera: str
+    visit: int
+    transfer_rms_m: float
+    calibration_rms_m: float
+
+    @property
+    def rms_m(self) -> float:
+        """Predicted RMS 3D position error, both parts together, m."""
+        return float(np.hypot(self.transfer_rms_m, self.calibration_rms_m))
+
+
+@dataclass(frozen=True)
+class ParentFinal:
+    """The parent's last CPS fix against the truth.
+
+    Attributes:
+        error_m: (3,) estimated minus true instrument centre, m (NaN without the truth).
+        covariance_m2: (3, 3) predicted covariance of the centre, m^2.
+        distance_travelled_m: the parent's travel at that fix, m.
+    """
+
+    error_m: NDArray[np.float64]
+    covariance_m2: NDArray[np.float64]
+    distance_travelled_m: float
+
+
+def predictions_from_log(
+    messages: Iterable[Any],
+) -> tuple[list[CalibrationPrediction], ParentFinal | None]:
+    """The predicted errors of every calibration of a run, and its parent's last fix.
+
+    Args:
+        messages: the log's messages in file order (``LogContents.messages``).
+    """
+    fix: dict[str, Any] | None = None
+    truth: dict[int, NDArray[np.float64]] = {}
+    out: list[CalibrationPrediction] = []
+    for m in messages:
+        if m.topic == PARENT_FIX:
+            fix = m.data
+        elif m.topic == TRUTH_PARENT:
+            truth[int(m.data["index"])] = np.asarray(m.data["translation"], dtype=float)
+        elif m.topic == CALIBRATION and fix is not None:
+            rec = m.data
+            position = np.asarray(rec["camera_model"]["position_m"], dtype=float)
+            cov = camera_position_covariance(fix["covariance"], fix["translation"], position)
+            std = rec["std"]
+            own = sum(float(std.get(k, 0.0)) ** 2 for k in ("x", "y", "z"))
+            out.append(
+                CalibrationPrediction(
+                    rec["camera"], int(rec["visit"]), float(np.sqrt(np.trace(cov))), own**0.5
+                )
+            )
+    if fix is None:
+        return out, None
+    est = np.asarray(fix["translation"], dtype=float)
+    true = truth.get(int(fix["index"]))
+    final = ParentFinal(
+        error_m=est - true if true is not None else np.full(3, np.nan),
+        covariance_m2=np.asarray(fix["covariance"], dtype=float)[1:, 1:],
+        distance_travelled_m=float(fix["distance_travelled"]),
+    )
+    return out, final

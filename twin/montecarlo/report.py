@@ -1,0 +1,204 @@
+"""The Monte-Carlo report: ``DIR/report.md`` with the tables of ``summary.json`` and the
+figures."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from twin.montecarlo.sources import SOURCES
+from twin.montecarlo.summary import AGREEMENT
+from twin.report.markdown import fmt, table
+from twin.report.results import visit_name
+
+
+def _distribution_rows(summary: dict[str, Any]) -> list[str]:
+    rows = []
+    for v in summary["visits"]:
+        p, r = v["position_error_mm"], v["rotation_error_deg"]
+        rows.append(
+            [
+                visit_name((v["camera"], v["visit"])),
+                fmt(v["distance_travelled_m"]["median"], ".1f"),
+                f"{100 * v['calibrated_fraction']:.0f} %",
+                fmt(p["median"], ".1f"),
+                fmt(p["p90"], ".1f"),
+                fmt(p["p99"], ".1f"),
+                fmt(r["median"], ".3f"),
+                fmt(r["p90"], ".3f"),
+                fmt(r["p99"], ".3f"),
+            ]
+        )
+    return table(
+        [
+            "visit",
+            "travel [m]",
+            "calibrated",
+            "pos. median [mm]",
+            "pos. 90 %",
+            "pos. 99 %",
+            "rot. median [deg]",
+            "rot. 90 %",
+            "rot. 99 %",
+        ],
+        rows,
+    )
+
+
+def _table_iii_rows(summary: dict[str, Any]) -> list[str]:
+    rows = [
+        [
+            visit_name((v["camera"], v["visit"])),
+            *(
+                f"{fmt(v[m]['median'])} / {fmt(v[m]['p90'])}"
+                for m in (
+                    "world_pixel_mean",
+                    "world_error_3d_mean_mm",
+                    "local_pixel_mean",
+                    "local_error_3d_mean_mm",
+                )
+            ),
+        ]
+        for v in summary["visits"]
+    ]
+    return table(["visit", "world px", "world 3D [mm]", "local px", "local 3D [mm]"], rows)
+
+
+def _prediction(summary: dict[str, Any]) -> list[str]:
+    rows, notes = [], []
+    for v in summary["visits"]:
+        pr = v["predicted"]
+        name = visit_name((v["camera"], v["visit"]))
+        rows.append(
+            [
+                name,
+                fmt(v["position_error_mm"]["rms"], ".1f"),
+                fmt(pr["transfer_rms_mm"], ".1f"),
+                fmt(pr["calibration_rms_mm"], ".1f"),
+                fmt(pr["rms_mm"], ".1f"),
+                fmt(pr["mc_over_predicted"]),
+                "yes" if pr["agrees"] else "**no**",
+            ]
+        )
+        ratio = pr["mc_over_predicted"]
+        if math.isfinite(ratio) and not pr["agrees"]:
+            notes.append(
+                f"- {name}: the Monte-Carlo RMS is {ratio:.2f} times the prediction. "
+                + (
+                    "The prediction leaves out errors that the first-order propagation does "
+                    "not model (the LED positions' own measurement noise in Tsai's fit, "
+                    "non-linearity, points skipped or re-taken)."
+                    if ratio > 1
+                    else "The prediction is pessimistic here (Tsai's covariance is scaled by "
+                    "residuals that include the 3D points' noise)."
+                )
+            )
+    out = table(
+        [
+            "visit",
+            "MC RMS [mm]",
+            "transfer [mm]",
+            "calibration [mm]",
+            "predicted RMS [mm]",
+            "MC / predicted",
+            "agrees",
+        ],
+        rows,
+    )
+    parent = summary["parent_final"]
+    if "x" in parent:
+        out += [
+            "",
+            f"The parent's final position after {fmt(parent['distance_travelled_m'], '.1f')} m:",
+            "",
+        ]
+        out += table(
+            ["axis", "MC std [mm]", "MC mean [mm]", "predicted std [mm]", "MC / predicted"],
+            [
+                [
+                    a,
+                    fmt(parent[a]["mc_std_mm"]),
+                    fmt(parent[a]["mc_mean_mm"]),
+                    fmt(parent[a]["predicted_std_mm"]),
+                    fmt(parent[a]["mc_over_predicted"]),
+                ]
+                for a in "xyz"
+            ],
+        )
+    lo, hi = AGREEMENT
+    return [
+        f"Agreement: Monte-Carlo RMS / predicted RMS within {lo}-{hi}. The prediction adds "
+        "the frame transfer (the parent's pose covariance at the station, propagated to the "
+        "camera's centre) and the calibration's own covariance (Tsai).",
+        "",
+        *out,
+        *(["", *notes] if notes else []),
+    ]
+
+
+def _budget(summary: dict[str, Any]) -> list[str]:
+    b = summary.get("budget")
+    if not b:
+        return ["No one-source runs in this table: run `twin montecarlo` with the budget on."]
+    entries = [*b["visits"], {"camera": "all visits", "visit": 0, **b["overall"]}]
+    rows = []
+    for e in entries:
+        name = e["camera"] if e["visit"] == 0 else visit_name((e["camera"], e["visit"]))
+        rows.append(
+            [
+                name,
+                fmt(e["all_rms_mm"], ".1f"),
+                *(
+                    f"{fmt(e['rms_mm'][s], '.1f')} ({fmt(100 * e['share'][s], '.0f')} %)"
+                    for s in b["sources"]
+                ),
+                fmt(e["sum_over_all"]),
+            ]
+        )
+    top = max(b["sources"], key=lambda s: b["overall"]["share"][s])
+    return [
+        "RMS position error with each source alone, and its share of the sum of mean "
+        "squares. `sum / all` near 1 means the sources add up independently.",
+        "",
+        *table(
+            ["visit", "all [mm]", *(s.replace("_", " ") for s in b["sources"]), "sum / all"],
+            rows,
+        ),
+        "",
+        f"The largest source over all visits: **{top.replace('_', ' ')}** "
+        f"({100 * b['overall']['share'][top]:.0f} % of the mean square): {SOURCES[top]}.",
+    ]
+
+
+def render_report(summary: dict[str, Any], figures: Mapping[str, Path], out_dir: Path) -> str:
+    """The report's Markdown."""
+    rate = summary.get("trials_per_second")
+    lines = [
+        f"# Monte-Carlo error budget: {summary['scenario']}",
+        "",
+        f"- fidelity: {summary['fidelity']}; master seed {summary['master_seed']}; "
+        f"{summary['trials_done']} trials per configuration "
+        f"({', '.join(summary['configurations'])})",
+        f"- scenario file: `{summary.get('scenario_file') or '-'}`",
+    ]
+    if rate:
+        lines.append(f"- {rate:.2f} trials per second in the last session")
+    lines += ["", "## World-frame camera error per visit (all sources)", ""]
+    lines += _distribution_rows(summary)
+    lines += ["", "## Table III metrics (median / 90 %)", "", *_table_iii_rows(summary)]
+    lines += ["", "## Monte Carlo against the covariance propagation", "", *_prediction(summary)]
+    lines += ["", "## Error budget", "", *_budget(summary), "", "## Figures", ""]
+    for name, path in figures.items():
+        lines.append(f"![{name.replace('_', ' ')}]({path.relative_to(out_dir).as_posix()})")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_report(summary: dict[str, Any], figures: Mapping[str, Path], out_dir: str | Path) -> Path:
+    """Write ``out_dir/report.md``; returns its path."""
+    out = Path(out_dir)
+    path = out / "report.md"
+    path.write_text(render_report(summary, figures, out))
+    return path

@@ -1,0 +1,175 @@
+"""A Monte-Carlo run: N trials of a scenario's campaign per noise configuration, written
+to a trial table as they finish, then summarised.
+
+``DIR/montecarlo.json`` holds what defines the run (scenario, fidelity, master seed,
+configurations); ``--resume`` checks it and runs only the trials the table lacks.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from twin.montecarlo.engines import make_engine
+from twin.montecarlo.seeds import trial_seed
+from twin.montecarlo.sources import configurations
+from twin.montecarlo.table import TrialTable
+from twin.montecarlo.trial import TrialSpec, run_trial
+from twin.report.results import planned_visits
+from twin.scenario import Scenario
+
+TABLE = "trials.csv"
+SETTINGS = "montecarlo.json"
+SUMMARY = "summary.json"
+
+
+@dataclass(frozen=True)
+class McProgress:
+    """Where a run stands: trials done of the total (this session's rate, s^-1)."""
+
+    done: int
+    total: int
+    rate: float
+    last: TrialSpec | None = None
+
+
+def scenario_digest(scenario: Scenario) -> str:
+    """A digest of everything a scenario defines (not where it was loaded from)."""
+    text = scenario.model_dump_json(exclude={"source"})
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _settings(scenario: Scenario, fidelity: str, master_seed: int, configs: tuple) -> dict:
+    return {
+        "scenario": scenario.name,
+        "scenario_file": scenario.source,
+        "scenario_digest": scenario_digest(scenario),
+        "fidelity": fidelity,
+        "master_seed": master_seed,
+        "configurations": list(configs),
+    }
+
+
+def _check_resume(path: Path, settings: dict[str, Any]) -> None:
+    if not path.exists():
+        raise FileNotFoundError(f"{path.parent}: no run to resume (no {SETTINGS})")
+    old = json.loads(path.read_text())
+    for key in ("scenario_digest", "fidelity", "master_seed", "configurations"):
+        if old.get(key) != settings[key]:
+            raise ValueError(
+                f"{path.parent}: cannot resume: the run there has {key} = {old.get(key)!r}, "
+                f"this one {settings[key]!r}"
+            )
+
+
+def run_montecarlo(
+    scenario: Scenario,
+    out_dir: str | Path,
+    trials: int,
+    *,
+    fidelity: str = "geometric",
+    master_seed: int | None = None,
+    budget: bool = False,
+    workers: int = 1,
+    engine: str = "local",
+    ray_address: str | None = None,
+    resume: bool = False,
+    progress: Callable[[McProgress], None] | None = None,
+    trial_fn: Callable[[TrialSpec], Any] = run_trial,
+) -> list[dict[str, Any]]:
+    """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
+
+    Args:
+        scenario: the scenario, with the noise of the real system.
+        out_dir: where ``trials.csv`` and ``montecarlo.json`` go.
+        trials: trials per configuration.
+        fidelity: ``geometric`` or ``render``.
+        master_seed: the seed every trial's seed follows from (default: the scenario's).
+        budget: also run each noise source alone (:mod:`twin.montecarlo.sources`).
+        workers: processes (local) or CPUs of a new local Ray instance (ray).
+        engine: ``local`` or ``ray``. ray_address: an existing Ray cluster's address.
+        resume: continue the run in ``out_dir`` (same scenario, fidelity, seed and
+            configurations), running only the trials its table lacks.
+        progress: called after each finished trial.
+        trial_fn: what runs one trial (a picklable function; tests replace it).
+
+    Raises:
+        ValueError: for bad counts, a run in ``out_dir`` without ``resume``, or settings
+            that differ from the run being resumed.
+    """
+    if trials < 1:
+        raise ValueError(f"trials must be at least 1, got {trials}")
+    if fidelity not in ("geometric", "render"):
+        raise ValueError(f"fidelity must be geometric or render, got {fidelity!r}")
+    seed = scenario.seed if master_seed is None else int(master_seed)
+    configs = configurations(budget)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    settings = _settings(scenario, fidelity, seed, configs)
+    settings_path, table_path = out / SETTINGS, out / TABLE
+    if resume:
+        _check_resume(settings_path, settings)
+    elif table_path.exists():
+        raise ValueError(f"{out} already holds a Monte-Carlo run: pass --resume or another --out")
+    settings["trials"] = trials
+    settings_path.write_text(json.dumps(settings, indent=2) + "\n")
+
+    rows_per_trial = len(planned_visits(scenario))
+    specs = [
+        TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity)
+        for config in configs
+        for i in range(trials)
+    ]
+    with TrialTable(table_path, rows_per_trial) as table:
+        todo = [s for s in specs if (s.config, s.trial) not in table.done]
+        done0 = len(specs) - len(todo)
+        runner = make_engine(engine, workers, ray_address)
+        t0 = time.perf_counter()
+        try:
+            for n, result in enumerate(runner.imap_unordered(trial_fn, todo), start=1):
+                table.append(result.rows)
+                if progress:
+                    rate = n / max(time.perf_counter() - t0, 1e-9)
+                    progress(McProgress(done0 + n, len(specs), rate, result.spec))
+        finally:
+            runner.close()
+        wanted = {(s.config, s.trial) for s in specs}
+        rows = table.finish(configs)
+        elapsed = time.perf_counter() - t0
+    rows = [r for r in rows if (r["config"], r["trial"]) in wanted]
+    settings["trials_per_second"] = len(todo) / elapsed if todo and elapsed > 0 else None
+    settings["wall_time_s"] = elapsed
+    write_outputs(rows, settings, out)
+    return rows
+
+
+def _finite_or_null(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None (JSON's null)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite_or_null(v) for v in value]
+    return value
+
+
+def write_outputs(rows: list[dict[str, Any]], settings: dict[str, Any], out: Path) -> dict:
+    """``summary.json``, ``figures/`` and ``report.md`` of a finished table; returns the
+    summary."""
+    from twin.montecarlo.figures import write_figures
+    from twin.montecarlo.report import write_report
+    from twin.montecarlo.summary import summarise
+
+    summary = summarise(rows, settings)
+    text = json.dumps(_finite_or_null(summary), indent=2, allow_nan=False)
+    (out / SUMMARY).write_text(text + "\n")
+    figures = write_figures(rows, summary, out / "figures")
+    write_report(summary, figures, out)
+    return summary

@@ -1,0 +1,62 @@
+"""The noise sources of an error budget, and scenarios with one source alone.
+
+A budget runs the campaign with every source (``all``) and with each source alone; the
+instruments still advertise their full noise (the estimators weigh the data as in the
+real run), only the simulated errors come from the one source.
+"""
+
+from __future__ import annotations
+
+from twin.scenario import Scenario
+
+ALL = "all"
+"""The configuration with every noise source of the scenario."""
+
+SOURCES: dict[str, str] = {
+    "distance": "total-station distance noise and its output rounding",
+    "angle": "total-station angle noise and its output rounding",
+    "inclination": "inclinometer noise",
+    "led_detection": "LED detection in the image (geometric: noise.led_detection_px; "
+    "render: the camera's sensor noise)",
+    "stopping": "robot stopping error and wheel odometry",
+    "marker": "error of the marker assembly's geometry (noise.marker_geometry_m)",
+}
+"""Each source by name, with what it switches on."""
+
+_DISTANCE = ("distance_sigma_const", "distance_sigma_ppm", "distance_resolution")
+_ANGLE = ("angle_sigma", "angle_resolution")
+
+
+def configurations(budget: bool) -> tuple[str, ...]:
+    """The configurations of a run: ``all``, then each source alone when ``budget``."""
+    return (ALL, *SOURCES) if budget else (ALL,)
+
+
+def isolate(scenario: Scenario, source: str) -> Scenario:
+    """``scenario`` with only ``source`` noisy (``all``: the scenario itself).
+
+    Raises:
+        ValueError: for an unknown source, naming the known ones.
+    """
+    if source == ALL:
+        return scenario
+    if source not in SOURCES:
+        raise ValueError(f"unknown noise source {source!r}; known: {', '.join(SOURCES)}")
+    quiet = scenario.without_noise()
+    full, off = scenario.noise, quiet.noise
+    noise = off
+    cameras = quiet.cameras
+    if source in ("distance", "angle"):
+        keys = _DISTANCE if source == "distance" else _ANGLE
+        ts = off.total_station.model_copy(update={k: getattr(full.total_station, k) for k in keys})
+        noise = off.model_copy(update={"total_station": ts})
+    elif source == "inclination":
+        noise = off.model_copy(update={"inclinometer": full.inclinometer})
+    elif source == "led_detection":
+        noise = off.model_copy(update={"led_detection_px": full.led_detection_px})
+        cameras = scenario.cameras
+    elif source == "stopping":
+        noise = off.model_copy(update={"stopping": full.stopping, "odometry": full.odometry})
+    elif source == "marker":
+        noise = off.model_copy(update={"marker_geometry_m": full.marker_geometry_m})
+    return quiet.model_copy(update={"noise": noise, "cameras": cameras})

@@ -1,0 +1,154 @@
+"""One Monte-Carlo trial: the whole campaign with one seed, as rows of the trial table.
+
+A trial runs :func:`twin.runner.run_scenario` in a temporary folder and turns its results
+and log into one row per planned camera visit (a visit that was not calibrated has a row
+with ``calibrated`` 0 and NaN errors), so that every trial has the same rows.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin.montecarlo.prediction import predictions_from_log
+from twin.montecarlo.sources import isolate
+from twin.report.results import planned_visits
+from twin.scenario import Scenario
+
+COLUMNS: dict[str, type] = {
+    "config": str,
+    "trial": int,
+    "seed": int,
+    "camera": str,
+    "visit": int,
+    "calibrated": int,
+    "distance_travelled_m": float,
+    "points": int,
+    "position_error_mm": float,
+    "rotation_error_deg": float,
+    "world_pixel_mean": float,
+    "world_error_3d_mean_mm": float,
+    "local_pixel_mean": float,
+    "local_error_3d_mean_mm": float,
+    "predicted_transfer_rms_mm": float,
+    "predicted_calibration_rms_mm": float,
+    "parent_final_dx_mm": float,
+    "parent_final_dy_mm": float,
+    "parent_final_dz_mm": float,
+    "parent_predicted_sx_mm": float,
+    "parent_predicted_sy_mm": float,
+    "parent_predicted_sz_mm": float,
+    "parent_distance_m": float,
+    "failures": int,
+}
+"""The trial table's columns and their types (lengths in the unit their names say)."""
+
+
+@dataclass(frozen=True)
+class TrialSpec:
+    """What one trial runs.
+
+    Attributes:
+        scenario: the scenario with all its noise (the instruments advertise this noise).
+        config: ``all`` or the noise source that alone is simulated.
+        trial: 0-based index. seed: the trial's root seed.
+        fidelity: ``geometric`` or ``render``.
+    """
+
+    scenario: Scenario
+    config: str
+    trial: int
+    seed: int
+    fidelity: str
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """A finished trial: its rows and the wall time it took, s."""
+
+    spec: TrialSpec
+    rows: tuple[dict[str, Any], ...]
+    wall_s: float
+
+
+def run_trial(spec: TrialSpec) -> TrialResult:
+    """Run one trial (in this process) and return its rows."""
+    from twin.record import read_log
+    from twin.runner import run_scenario
+
+    t0 = time.perf_counter()
+    scenario = isolate(spec.scenario, spec.config)
+    with tempfile.TemporaryDirectory(prefix="twin-trial-") as tmp:
+        results = run_scenario(
+            scenario,
+            tmp,
+            fidelity=spec.fidelity,
+            seed=spec.seed,
+            report=False,
+            advertised_noise=spec.scenario.noise,
+        )
+        predictions, final = predictions_from_log(read_log(f"{tmp}/log.mcap").messages)
+    rows = trial_rows(spec, results, predictions, final)
+    return TrialResult(spec, tuple(rows), time.perf_counter() - t0)
+
+
+def _mm(value: Any) -> float:
+    return math.nan if value is None else 1e3 * float(value)
+
+
+def _get(d: dict[str, Any] | None, key: str) -> float:
+    return math.nan if d is None or d.get(key) is None else float(d[key])
+
+
+def trial_rows(
+    spec: TrialSpec, results: dict[str, Any], predictions: list[Any], final: Any
+) -> list[dict[str, Any]]:
+    """The table rows of a trial from its results and predictions (one per planned visit)."""
+    made = {(c["camera"], c["visit"]): c for c in results["calibrations"]}
+    predicted = {(p.camera, p.visit): p for p in predictions}
+    err = final.error_m if final is not None else np.full(3, np.nan)
+    std = np.sqrt(np.diag(final.covariance_m2)) if final is not None else np.full(3, np.nan)
+    trial_level = {
+        "parent_final_dx_mm": _mm(err[0]),
+        "parent_final_dy_mm": _mm(err[1]),
+        "parent_final_dz_mm": _mm(err[2]),
+        "parent_predicted_sx_mm": _mm(std[0]),
+        "parent_predicted_sy_mm": _mm(std[1]),
+        "parent_predicted_sz_mm": _mm(std[2]),
+        "parent_distance_m": final.distance_travelled_m if final is not None else math.nan,
+        "failures": int(sum(results["failures"].values())),
+    }
+    rows = []
+    for (camera, visit), _ in planned_visits(spec.scenario):
+        c = made.get((camera, visit))
+        p = predicted.get((camera, visit))
+        world = c["errors"]["world"] if c else None
+        local = c["errors"]["local"] if c else None
+        truth = c["truth"] if c else None
+        rows.append(
+            {
+                "config": spec.config,
+                "trial": spec.trial,
+                "seed": spec.seed,
+                "camera": camera,
+                "visit": visit,
+                "calibrated": int(c is not None),
+                "distance_travelled_m": c["distance_travelled_m"] if c else math.nan,
+                "points": c["points"] if c else 0,
+                "position_error_mm": _get(truth, "position_error_mm"),
+                "rotation_error_deg": _get(truth, "rotation_error_deg"),
+                "world_pixel_mean": _get(world, "pixel_mean"),
+                "world_error_3d_mean_mm": _get(world, "error_3d_mean_mm"),
+                "local_pixel_mean": _get(local, "pixel_mean"),
+                "local_error_3d_mean_mm": _get(local, "error_3d_mean_mm"),
+                "predicted_transfer_rms_mm": _mm(p.transfer_rms_m) if p else math.nan,
+                "predicted_calibration_rms_mm": _mm(p.calibration_rms_m) if p else math.nan,
+                **trial_level,
+            }
+        )
+    return rows
