@@ -26,7 +26,7 @@ $(VENV)/.stamp-run: pyproject.toml
 $(VENV)/.stamp-dev: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet -e ".[dev,cluster]"
 	touch $(VENV)/.stamp-run $@
 
 run: $(VENV)/.stamp-run gl-libs

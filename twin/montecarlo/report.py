@@ -87,9 +87,9 @@ def _prediction(summary: dict[str, Any]) -> list[str]:
             notes.append(
                 f"- {name}: the Monte-Carlo RMS is {ratio:.2f} times the prediction. "
                 + (
-                    "The prediction leaves out errors that the first-order propagation does "
-                    "not model (the LED positions' own measurement noise in Tsai's fit, "
-                    "non-linearity, points skipped or re-taken)."
+                    "Tsai's covariance treats the data points as independent, but the four "
+                    "LEDs of one stop share the error of the marker pose measured by the "
+                    "total station, so the calibration's own part is underestimated."
                     if ratio > 1
                     else "The prediction is pessimistic here (Tsai's covariance is scaled by "
                     "residuals that include the 3D points' noise)."

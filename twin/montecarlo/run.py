@@ -117,31 +117,30 @@ def run_montecarlo(
         _check_resume(settings_path, settings)
     elif table_path.exists():
         raise ValueError(f"{out} already holds a Monte-Carlo run: pass --resume or another --out")
-    settings["trials"] = trials
-    settings_path.write_text(json.dumps(settings, indent=2) + "\n")
-
-    rows_per_trial = len(planned_visits(scenario))
-    specs = [
-        TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity)
-        for config in configs
-        for i in range(trials)
-    ]
-    with TrialTable(table_path, rows_per_trial) as table:
-        todo = [s for s in specs if (s.config, s.trial) not in table.done]
-        done0 = len(specs) - len(todo)
-        runner = make_engine(engine, workers, ray_address)
-        t0 = time.perf_counter()
-        try:
+    runner = make_engine(engine, workers, ray_address)
+    try:
+        settings["trials"] = trials
+        settings_path.write_text(json.dumps(settings, indent=2) + "\n")
+        rows_per_trial = len(planned_visits(scenario))
+        specs = [
+            TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity)
+            for config in configs
+            for i in range(trials)
+        ]
+        with TrialTable(table_path, rows_per_trial) as table:
+            todo = [s for s in specs if (s.config, s.trial) not in table.done]
+            done0 = len(specs) - len(todo)
+            t0 = time.perf_counter()
             for n, result in enumerate(runner.imap_unordered(trial_fn, todo), start=1):
                 table.append(result.rows)
                 if progress:
                     rate = n / max(time.perf_counter() - t0, 1e-9)
                     progress(McProgress(done0 + n, len(specs), rate, result.spec))
-        finally:
-            runner.close()
-        wanted = {(s.config, s.trial) for s in specs}
-        rows = table.finish(configs)
-        elapsed = time.perf_counter() - t0
+            elapsed = time.perf_counter() - t0
+            rows = table.finish(configs)
+    finally:
+        runner.close()
+    wanted = {(s.config, s.trial) for s in specs}
     rows = [r for r in rows if (r["config"], r["trial"]) in wanted]
     settings["trials_per_second"] = len(todo) / elapsed if todo and elapsed > 0 else None
     settings["wall_time_s"] = elapsed

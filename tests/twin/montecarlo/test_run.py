@@ -1,0 +1,129 @@
+"""Whole Monte-Carlo runs of the smoke scenario: the table is the same whatever the number
+of workers, the engine, or an interruption; the outputs are written."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from twin.montecarlo import run_montecarlo
+from twin.montecarlo.engines import make_engine
+from twin.montecarlo.run import SETTINGS, TABLE
+from twin.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+TRIALS = 4
+
+
+@pytest.fixture(scope="module")
+def smoke():
+    return load_scenario(SMOKE)
+
+
+@pytest.fixture(scope="module")
+def reference(smoke, tmp_path_factory):
+    """An uninterrupted run in this process (one worker)."""
+    out = tmp_path_factory.mktemp("reference")
+    rows = run_montecarlo(smoke, out, TRIALS, master_seed=11)
+    return out, rows
+
+
+def test_a_run_writes_its_table_summary_figures_and_report(reference):
+    out, rows = reference
+    assert len(rows) == TRIALS  # the smoke scenario plans one visit
+    assert [r["trial"] for r in rows] == list(range(TRIALS))
+    assert all(r["calibrated"] == 1 for r in rows)
+    assert len({r["seed"] for r in rows}) == TRIALS
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials_done"] == TRIALS
+    visit = summary["visits"][0]
+    assert visit["position_error_mm"]["n"] == TRIALS
+    assert visit["position_error_mm"]["median"] > 0
+    assert summary["budget"] is None
+    for name in ("position_error_histograms", "error_vs_distance", "budget"):
+        assert (out / "figures" / f"{name}.png").stat().st_size > 1000
+    report = (out / "report.md").read_text()
+    assert "Monte Carlo against the covariance propagation" in report
+
+
+def test_the_table_is_the_same_with_two_worker_processes(smoke, reference, tmp_path):
+    ref_out, ref_rows = reference
+    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2)
+    assert rows == ref_rows
+    assert (tmp_path / TABLE).read_bytes() == (ref_out / TABLE).read_bytes()
+
+
+def test_a_local_ray_instance_gives_the_same_rows(smoke, reference, tmp_path):
+    import ray
+
+    _, ref_rows = reference
+    try:
+        rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2, engine="ray")
+    finally:
+        ray.shutdown()
+    assert rows == ref_rows
+
+
+def test_a_killed_run_resumes_to_the_same_table(reference, tmp_path):
+    ref_out, _ = reference
+    cmd = [sys.executable, "-m", "twin.cli", "montecarlo", str(SMOKE), "--trials", str(TRIALS)]
+    cmd += ["--seed", "11", "--no-budget", "--out", str(tmp_path)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    table = tmp_path / TABLE
+    deadline = time.monotonic() + 120
+    # Kill it once it has finished at least one trial and not all of them.
+    while time.monotonic() < deadline:
+        lines = table.read_text().count("\n") - 1 if table.exists() else 0
+        if lines >= 1 or proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    kept = table.read_text().count("\n") - 1
+    assert 1 <= kept < TRIALS, proc.stderr.read().decode()[-2000:]
+    smoke = load_scenario(SMOKE)
+    with pytest.raises(ValueError, match="--resume"):
+        run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11)
+    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, resume=True)
+    assert table.read_bytes() == (ref_out / TABLE).read_bytes()
+    assert len(rows) == TRIALS
+
+
+def test_resuming_with_other_settings_is_refused(smoke, reference, tmp_path):
+    ref_out, _ = reference
+    (tmp_path / SETTINGS).write_text((ref_out / SETTINGS).read_text())
+    with pytest.raises(ValueError, match="master_seed"):
+        run_montecarlo(smoke, tmp_path, TRIALS, master_seed=12, resume=True)
+    with pytest.raises(ValueError, match="fidelity"):
+        run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, fidelity="render", resume=True)
+    with pytest.raises(FileNotFoundError, match="no run to resume"):
+        run_montecarlo(smoke, tmp_path / "empty", TRIALS, resume=True)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"trials": 0}, "trials must be at least 1"),
+        ({"trials": 1, "fidelity": "exact"}, "fidelity"),
+        ({"trials": 1, "engine": "dask"}, "unknown engine"),
+        ({"trials": 1, "workers": 0}, "workers must be at least 1"),
+        ({"trials": 1, "ray_address": "auto"}, "--ray-address goes with --engine ray"),
+    ],
+)
+def test_bad_settings_are_refused(smoke, tmp_path, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        run_montecarlo(smoke, tmp_path, **kwargs)
+
+
+def test_without_ray_the_ray_engine_says_how_to_install_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)
+    with pytest.raises(RuntimeError, match=r"pip install 'camnet-twin\[cluster\]'"):
+        make_engine("ray", 2)
