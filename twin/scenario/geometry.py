@@ -75,10 +75,26 @@ def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDA
     )
 
 
+def _boxes(space: Space, obstacles: tuple[Obstacle, ...]) -> tuple[NDArray, ...]:
+    """The obstacles' boxes as arrays: (O, 2) centres, (O,) cos and sin of their yaws, and
+    (O, 3) lowest and highest corners in their own frames (see :func:`world2box`), m."""
+    obs = obstacles or space.obstacles
+    centre = np.array([ob.center for ob in obs], dtype=float).reshape(-1, 2)
+    yaw = [ob.yaw for ob in obs]
+    c = np.array([np.cos(y) for y in yaw])
+    s = np.array([np.sin(y) for y in yaw])
+    size = np.array([ob.size for ob in obs], dtype=float).reshape(-1, 3)
+    lo = np.column_stack([-0.5 * size[:, 0], -0.5 * size[:, 1], np.full(len(obs), space.floor_z)])
+    hi = np.column_stack([0.5 * size[:, 0], 0.5 * size[:, 1], space.floor_z + size[:, 2]])
+    return centre, c, s, lo, hi
+
+
 def segment_blocked(
     space: Space, starts: ArrayLike, ends: ArrayLike, obstacles: tuple[Obstacle, ...] = ()
 ) -> NDArray[np.bool_]:
     """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
+
+    The slab test, for all segments and obstacles at once.
 
     Args:
         space: gives the floor height (obstacles stand on the floor).
@@ -88,27 +104,28 @@ def segment_blocked(
     a = np.array(starts, dtype=float, ndmin=2)
     b = np.array(ends, dtype=float, ndmin=2)
     a, b = np.broadcast_arrays(a, b)
-    blocked = np.zeros(len(a), dtype=bool)
-    for ob in obstacles or space.obstacles:
-        qa, qb = world2box(ob, a), world2box(ob, b)
-        lo = np.array([-0.5 * ob.size[0], -0.5 * ob.size[1], space.floor_z])
-        hi = np.array([0.5 * ob.size[0], 0.5 * ob.size[1], space.floor_z + ob.size[2]])
-        d = qb - qa
-        t0 = np.zeros(len(a))
-        t1 = np.ones(len(a))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for k in range(3):
-                inv = 1.0 / d[:, k]
-                ta = (lo[k] - qa[:, k]) * inv
-                tb = (hi[k] - qa[:, k]) * inv
-                tmin = np.where(np.isfinite(inv), np.minimum(ta, tb), -np.inf)
-                tmax = np.where(np.isfinite(inv), np.maximum(ta, tb), np.inf)
-                outside = ~np.isfinite(inv) & ((qa[:, k] < lo[k]) | (qa[:, k] > hi[k]))
-                tmin = np.where(outside, np.inf, tmin)
-                t0 = np.maximum(t0, tmin)
-                t1 = np.minimum(t1, tmax)
-        blocked |= t0 <= t1
-    return blocked
+    centre, c, s, lo, hi = (x[:, None] for x in _boxes(space, obstacles))
+    # Both ends in each obstacle's frame, (O, N) per axis (as world2box).
+    qa, qb = [], []
+    for p, q in ((a, qa), (b, qb)):
+        dx, dy = p[:, 0] - centre[..., 0], p[:, 1] - centre[..., 1]
+        q += [c * dx + s * dy, -s * dx + c * dy, np.broadcast_to(p[:, 2], dx.shape)]
+    t0 = np.zeros(qa[0].shape)
+    t1 = np.ones(qa[0].shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(3):
+            d = qb[k] - qa[k]
+            inv = 1.0 / d
+            ta = (lo[..., k] - qa[k]) * inv
+            tb = (hi[..., k] - qa[k]) * inv
+            finite = np.isfinite(inv)
+            tmin = np.where(finite, np.minimum(ta, tb), -np.inf)
+            tmax = np.where(finite, np.maximum(ta, tb), np.inf)
+            outside = ~finite & ((qa[k] < lo[..., k]) | (qa[k] > hi[..., k]))
+            tmin = np.where(outside, np.inf, tmin)
+            t0 = np.maximum(t0, tmin)
+            t1 = np.minimum(t1, tmax)
+    return (t0 <= t1).any(axis=0)
 
 
 def floor_view(
