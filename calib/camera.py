@@ -147,6 +147,14 @@ class TsaiCamera:
         return p @ self.world2cam_r.T + self.world2cam_t
 
     # -- projection ---------------------------------------------------------------------
+    def project_or_nan(self, points_world: ArrayLike) -> NDArray[np.float64]:
+        """Project (N, 3) world points (m) to (N, 2) distorted pixels, without raising: a
+        row is NaN where its point lies behind the camera (z_c <= 0) or beyond the fold of
+        a negative kappa1. Every other row is what :meth:`project` gives (the same
+        computation, for any number of points at once)."""
+        p = check_points_3d(points_world)
+        return project_tsai(p, *self._intrinsics(), self.world2cam_r, self.world2cam_t)
+
     def project(self, points_world: ArrayLike) -> NDArray[np.float64]:
         """Project (N, 3) world points (m) to (N, 2) distorted pixels.
 
@@ -163,7 +171,7 @@ class TsaiCamera:
                 f"{int(behind.sum())} point(s) lie behind the camera, first in row {i} "
                 f"(z_c = {z[i]:.4g} m)"
             )
-        uv = project_tsai(p, *self._intrinsics(), self.world2cam_r, self.world2cam_t)
+        uv = self.project_or_nan(p)
         fold = np.isnan(uv[:, 0])
         if fold.any():
             i = int(np.argmax(fold))

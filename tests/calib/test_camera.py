@@ -114,3 +114,22 @@ def test_analytic_jacobian_matches_finite_differences(paper_cam, kappa1) -> None
     assert_allclose(uv + np.array([q[1], q[2]]), cam.project(pts), atol=1e-9)
     scale = np.abs(numeric).max(axis=0)
     assert_allclose(jac.reshape(-1, 11) / scale, numeric / scale, atol=1e-6)
+
+
+def test_project_or_nan_is_project_for_each_point(paper_cam) -> None:
+    rng = np.random.default_rng(11)
+    ahead = paper_cam.optical_axis * rng.uniform(-5.0, 40.0, (400, 1))
+    points = paper_cam.position + ahead + rng.normal(0.0, 4.0, (400, 3))
+    folded = paper_cam.with_(kappa1=-2e-6)  # a fold inside the field of view
+    for cam in (paper_cam, folded):
+        batch = cam.project_or_nan(points)
+        assert batch.shape == (400, 2)
+        for p, uv in zip(points, batch, strict=True):
+            try:
+                alone = cam.project(p[None])[0]
+            except ValueError:
+                alone = np.full(2, np.nan)
+            # Equal but for the rounding of the matrix product (one row or many).
+            assert_allclose(uv, alone, rtol=1e-9, atol=0, equal_nan=True)
+    assert np.isnan(folded.project_or_nan(points)).any()
+    assert np.isnan(paper_cam.project_or_nan(points)).any()  # points behind the camera
