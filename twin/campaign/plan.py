@@ -95,16 +95,34 @@ def formation(
     for gap in gaps:
         for spacing in (form.spacing, 0.7 * form.spacing):
             for near_side, far_side in sides:
-                stops = []
+                places = []
                 for ahead, side in ((gap + spacing, far_side), (gap, near_side)):
                     s = s_next + direction * ahead
-                    xy = path.offset(s, side * direction)
                     yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
+                    places.append((path.offset(s, side * direction), yaw))
+                # Where the children stand decides most; their headings cost more to find.
+                if not _places_ok(scenario, [xy for xy, _ in places], stations):
+                    continue
+                stops = []
+                for xy, yaw in places:
                     turned = unhidden_yaw(xy, yaw, cubes, stations, scenario.space.floor_z)
                     stops.append(Stop(xy, yaw if turned is None else turned))
                 if _formation_ok(scenario, stops, stations, cubes, ts.range_min, ts.range_max):
                     return stops
     return None
+
+
+def _places_ok(
+    scenario: Scenario, places: list[NDArray[np.float64]], stations: list[NDArray[np.float64]]
+) -> bool:
+    """Whether the children's (2,) places (m) are free, 1 m apart and 1 m from each
+    instrument ((3,) positions, m)."""
+    xy = np.array(places)
+    if not free(scenario, xy, FORMATION_CLEARANCE).all():
+        return False
+    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
+        return False
+    return all(np.min(np.linalg.norm(xy - inst[:2], axis=1)) >= 1.0 for inst in stations)
 
 
 def _formation_ok(
@@ -116,14 +134,10 @@ def _formation_ok(
     range_max: float,
 ) -> bool:
     xy = np.array([s.xy for s in stops])
-    if not free(scenario, xy, FORMATION_CLEARANCE).all():
-        return False
-    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
+    if not _places_ok(scenario, list(xy), stations):
         return False
     floor = scenario.space.floor_z
     for inst in stations:
-        if np.min(np.linalg.norm(xy - inst[:2], axis=1)) < 1.0:
-            return False
         bearings = []
         for k, stop in enumerate(stops):
             pts = body_points(stop.xy, stop.yaw, cubes, floor)[0]
@@ -199,53 +213,24 @@ def view_stops(
     ok = free(scenario, xy)
     parent = np.asarray(parent_xy, dtype=float).reshape(2)
     ok &= np.linalg.norm(xy - parent, axis=1) > 1.2
-    if anchor_xy is not None:
-        ok &= np.linalg.norm(xy - np.asarray(anchor_xy, float).reshape(2), axis=1) > 1.2
+    anchor = None if anchor_xy is None else np.asarray(anchor_xy, float).reshape(2)
+    if anchor is not None:
+        ok &= np.linalg.norm(xy - anchor, axis=1) > 1.2
     idx = np.flatnonzero(ok)
     if idx.size == 0:
         return []
     led_w = body_points(xy[idx], yaw[idx], leds, floor)
     cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
-    w, h = camera.image_size
     inst = np.array([parent[0], parent[1], instrument_z])
-    ts = scenario.noise.total_station
-    anchor = child_profile(floor)
-    keep: list[int] = []
-    pix_all: list[NDArray] = []
-    for j, i in enumerate(idx):
-        z = camera.to_camera_frame(led_w[j])[:, 2]
-        if np.any(z <= 0.1):
-            continue
-        try:
-            uv = camera.project(led_w[j])
-        except ValueError:
-            continue
-        inside = (
-            (uv[:, 0] >= IMAGE_MARGIN)
-            & (uv[:, 0] <= w - 1 - IMAGE_MARGIN)
-            & (uv[:, 1] >= IMAGE_MARGIN)
-            & (uv[:, 1] <= h - 1 - IMAGE_MARGIN)
-        )
-        if not inside.all():
-            continue
-        if not sight_clear(scenario, cam, led_w[j]).all():
-            continue
-        if passes_near(cam, led_w[j], parent, parent_profile(floor)).any():
-            continue
-        if anchor_xy is not None and passes_near(cam, led_w[j], anchor_xy, anchor).any():
-            continue
-        d = np.linalg.norm(cube_w[j] - inst, axis=1)
-        if d.min() < ts.range_min + RANGE_MARGIN or d.max() > ts.range_max:
-            continue
-        if not sight_clear(scenario, inst, cube_w[j]).all():
-            continue
-        if anchor_xy is not None and passes_near(inst, cube_w[j], anchor_xy, anchor).any():
-            continue
-        keep.append(int(i))
-        pix_all.append(uv)
-    if not keep:
+    # Each test on the candidates that passed the ones before (the cheap ones first).
+    sel, pix = _leds_in_image(camera, led_w)
+    sel = sel[_leds_seen(scenario, cam, led_w[sel], parent, anchor)]
+    sel = sel[_prisms_seen(scenario, inst, cube_w[sel], anchor)]
+    if sel.size == 0:
         return []
-    pix = np.array(pix_all)
+    keep = idx[sel]
+    pix = pix[sel]
+    w, h = camera.image_size
     depth = np.linalg.norm(xy[keep] - cam[:2], axis=1)
     feats = np.column_stack(
         [
@@ -258,19 +243,88 @@ def view_stops(
     return [ViewStop(Stop(xy[keep[k]].copy(), float(yaw[keep[k]])), pix[k]) for k in order]
 
 
+def _leds_in_image(
+    camera: TsaiCamera, led_w: NDArray[np.float64]
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Which of N candidates' (N, K, 3) LEDs (W, m) all lie more than 0.1 m in front of
+    the camera and project inside its image with ``IMAGE_MARGIN``.
+
+    Returns:
+        (M,) indices of those candidates, and (N, K, 2) every candidate's pixels (NaN
+        where an LED cannot be projected), px.
+    """
+    n, k = led_w.shape[:2]
+    flat = led_w.reshape(-1, 3)
+    z = camera.to_camera_frame(flat)[:, 2].reshape(n, k)
+    uv = camera.project_or_nan(flat).reshape(n, k, 2)
+    w, h = camera.image_size
+    inside = (
+        (uv[..., 0] >= IMAGE_MARGIN)
+        & (uv[..., 0] <= w - 1 - IMAGE_MARGIN)
+        & (uv[..., 1] >= IMAGE_MARGIN)
+        & (uv[..., 1] <= h - 1 - IMAGE_MARGIN)
+    )
+    return np.flatnonzero((z > 0.1).all(axis=1) & inside.all(axis=1)), uv
+
+
+def _leds_seen(
+    scenario: Scenario,
+    cam: NDArray[np.float64],
+    led_w: NDArray[np.float64],
+    parent_xy: NDArray[np.float64],
+    anchor_xy: NDArray[np.float64] | None,
+) -> NDArray[np.bool_]:
+    """(N,) whether the camera at ``cam`` ((3,) m) sees all (N, K, 3) LEDs of each
+    candidate past the map's obstacles, the parent and the anchor child ((2,) m or None)."""
+    n, k = led_w.shape[:2]
+    flat = led_w.reshape(-1, 3)
+    floor = scenario.space.floor_z
+    hidden = ~sight_clear(scenario, cam, flat)
+    hidden |= passes_near(cam, flat, parent_xy, parent_profile(floor))
+    if anchor_xy is not None:
+        hidden |= passes_near(cam, flat, anchor_xy, child_profile(floor))
+    return ~hidden.reshape(n, k).any(axis=1)
+
+
+def _prisms_seen(
+    scenario: Scenario,
+    inst: NDArray[np.float64],
+    cube_w: NDArray[np.float64],
+    anchor_xy: NDArray[np.float64] | None,
+) -> NDArray[np.bool_]:
+    """(N,) whether the instrument at ``inst`` ((3,) m) has all (N, K, 3) prisms of each
+    candidate in range (with ``RANGE_MARGIN``) and in sight past the map's obstacles and
+    the anchor child ((2,) m or None)."""
+    n, k = cube_w.shape[:2]
+    ts = scenario.noise.total_station
+    d = np.linalg.norm(cube_w - inst, axis=-1)
+    ok = (d.min(axis=1) >= ts.range_min + RANGE_MARGIN) & (d.max(axis=1) <= ts.range_max)
+    flat = cube_w.reshape(-1, 3)
+    hidden = ~sight_clear(scenario, inst, flat)
+    if anchor_xy is not None:
+        hidden |= passes_near(inst, flat, anchor_xy, child_profile(scenario.space.floor_z))
+    return ok & ~hidden.reshape(n, k).any(axis=1)
+
+
 def _farthest_first(feats: NDArray[np.float64], start: NDArray[np.float64]) -> list[int]:
     """Farthest-point order of (N, D) features, first the one nearest ``start``."""
     n = len(feats)
-    first = int(np.argmin(np.linalg.norm(feats - start, axis=1)))
+    first = int(np.argmin(_norms(feats - start)))
     order = [first]
-    dist = np.linalg.norm(feats - feats[first], axis=1)
+    dist = _norms(feats - feats[first])
     dist[first] = -1.0
     while len(order) < n:
         k = int(np.argmax(dist))
         order.append(k)
-        dist = np.minimum(dist, np.linalg.norm(feats - feats[k], axis=1))
-        dist[order] = -1.0
+        # Chosen features stay at -1: every distance is >= 0.
+        dist = np.minimum(dist, _norms(feats - feats[k]))
+        dist[k] = -1.0
     return order
+
+
+def _norms(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N,) Euclidean norms of (N, D) rows, as ``np.linalg.norm(v, axis=1)`` computes them."""
+    return np.sqrt(np.add.reduce(v * v, axis=1))
 
 
 def tour(stops: list[ViewStop], start_xy: ArrayLike) -> list[ViewStop]:
