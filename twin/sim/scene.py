@@ -149,6 +149,7 @@ class World:
         self.scenario = scenario
         self.spec = build_spec(scenario, markers)
         self.model = self.spec.compile()
+        self._ids: dict[tuple[mujoco.mjtObj, str], int] = {}  # ids by (kind, name)
         self.data = mujoco.MjData(self.model)
         self.substeps = max(1, round(control_period / self.model.opt.timestep))
         self.control_period = self.substeps * self.model.opt.timestep
@@ -282,9 +283,14 @@ class World:
         return float(self.data.time)
 
     def _id(self, kind: mujoco.mjtObj, name: str) -> int:
-        i = mujoco.mj_name2id(self.model, kind, name)
-        if i < 0:
-            raise KeyError(f"the model has no {kind.name.removeprefix('mjOBJ_').lower()} {name!r}")
+        key = (kind, name)
+        i = self._ids.get(key)
+        if i is None:
+            i = mujoco.mj_name2id(self.model, kind, name)
+            if i < 0:
+                kind_name = kind.name.removeprefix("mjOBJ_").lower()
+                raise KeyError(f"the model has no {kind_name} {name!r}")
+            self._ids[key] = i
         return i
 
     # -- stepping ----------------------------------------------------------------------------
@@ -532,9 +538,16 @@ class World:
 
     def marker_points(self, child: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True world positions of a child's corner cubes (3, 3) and LEDs (4, 3), m."""
-        cubes = np.array([self.site_pose(f"{child}/cube{k}")[0] for k in range(N_CUBES)])
-        leds = np.array([self.site_pose(f"{child}/led{k}")[0] for k in range(N_LEDS)])
-        return cubes, leds
+        cubes, leds = self._marker_sites(child)
+        return self.data.site_xpos[cubes], self.data.site_xpos[leds]
+
+    def _marker_sites(self, child: str) -> tuple[list[int], list[int]]:
+        """Site ids of a child's corner cubes and LEDs."""
+        site = mujoco.mjtObj.mjOBJ_SITE
+        return (
+            [self._id(site, f"{child}/cube{k}") for k in range(N_CUBES)],
+            [self._id(site, f"{child}/led{k}") for k in range(N_LEDS)],
+        )
 
     # -- LEDs, cameras, sight ----------------------------------------------------------------
     def set_leds(self, child: str, on: bool | Sequence[bool]) -> None:
@@ -591,26 +604,32 @@ class World:
         """
         o = np.asarray(origin, dtype=float).reshape(3)
         d = np.asarray(direction, dtype=float).reshape(3)
-        d = d / np.linalg.norm(d)
+        dist, g = self._cast(o, d / np.linalg.norm(d), exclude_robot)
+        if g < 0:
+            return dist, None
+        return dist, mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g)
+
+    def _cast(self, origin: NDArray, unit: NDArray, exclude_robot: str | None) -> tuple[float, int]:
+        """:meth:`ray` from (3,) ``origin`` along a (3,) unit direction: (distance m, geom
+        id), or (inf, -1) if nothing is hit."""
         skip = self.robots[exclude_robot].geoms if exclude_robot else frozenset()
         body = self.robots[exclude_robot].body if exclude_robot else -1
         gid = np.array([-1], dtype=np.int32)
-        start, travelled = o, 0.0
+        start, travelled = origin, 0.0
         # mj_ray ignores one body only: step past any hit on the excluded robot's other
         # bodies (its wheels, say) and cast again from there.
         for _ in range(MAX_RAY_RECASTS):
-            dist = mujoco.mj_ray(self.model, self.data, start, d, SIGHT_GROUPS, 1, body, gid)
+            dist = mujoco.mj_ray(self.model, self.data, start, unit, SIGHT_GROUPS, 1, body, gid)
             if dist < 0:
-                return float("inf"), None
+                return float("inf"), -1
             g = int(gid[0])
             if g not in skip:
-                name = mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_GEOM, g)
-                return travelled + float(dist), name
+                return travelled + float(dist), g
             step = float(dist) + 1e-6
             travelled += step
-            start = start + step * d
+            start = start + step * unit
             body = int(self.model.geom_bodyid[g])
-        raise RuntimeError(f"ray from {o} kept hitting robot {exclude_robot!r}")
+        raise RuntimeError(f"ray from {origin} kept hitting robot {exclude_robot!r}")
 
     def line_of_sight(
         self,
@@ -622,9 +641,10 @@ class World:
         """Whether nothing blocks the segment from ``p_from`` to ``p_to`` (m) except within
         ``tolerance`` (m) of ``p_to`` (the target's own housing, e.g. a prism or an LED)."""
         a = np.asarray(p_from, dtype=float).reshape(3)
-        b = np.asarray(p_to, dtype=float).reshape(3)
-        dist, _ = self.ray(a, b - a, exclude_robot)
-        return bool(dist >= np.linalg.norm(b - a) - tolerance)
+        v = np.asarray(p_to, dtype=float).reshape(3) - a
+        length = np.linalg.norm(v)
+        dist, _ = self._cast(a, v / length, exclude_robot)
+        return bool(dist >= length - tolerance)
 
     def export(self, path: str | Path) -> Path:
         """Write the compiled scene as one MJCF file that loads on its own, and return it.
