@@ -62,6 +62,7 @@ class SimTotalStation(TotalStation):
         self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
         self._aim: np.ndarray | None = None
         self.children = [c.name for c in world.scenario.robots.children]
+        self._tilt: tuple[bytes, tuple[float, float]] = (b"", (0.0, 0.0))
         self._advertised = advertised or (spec, inclinometer)
 
     @property
@@ -80,7 +81,11 @@ class SimTotalStation(TotalStation):
 
     def _true_state(self) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
         position, rotation = self.world.instrument_pose(self.parent)
-        return position, rotation, tilt_from_orientation(rotation)
+        # The parent stands still for many shots: its tilt is worked out once per pose.
+        key = rotation.tobytes()
+        if key != self._tilt[0]:
+            self._tilt = (key, tilt_from_orientation(rotation))
+        return position, rotation, self._tilt[1]
 
     def measure(self) -> TotalStationMeasurement:
         if self._aim is None:
