@@ -129,6 +129,7 @@ class CpsSequence:
         self._known = np.zeros(len(names), dtype=bool)
         self._time = pose.timestamp
         self._steps: list[CpsStep] = []
+        self._parent: ParentPose | None = None  # the pose of the current state, once built
 
     # -- read access ---------------------------------------------------------------------
     @property
@@ -144,7 +145,9 @@ class CpsSequence:
     @property
     def parent(self) -> ParentPose:
         """The parent's current pose estimate with its covariance."""
-        return ParentPose(self._x[0], self._x[1:4], self._p[:4, :4].copy(), self._time)
+        if self._parent is None:
+            self._parent = ParentPose(self._x[0], self._x[1:4], self._p[:4, :4].copy(), self._time)
+        return self._parent
 
     @property
     def state(self) -> NDArray[np.float64]:
@@ -277,6 +280,7 @@ class CpsSequence:
         p_new = a @ self._p @ a.T + b @ noise @ b.T
         self._x = x_new
         self._p = 0.5 * (p_new + p_new.T)
+        self._parent = None
 
     def _record(
         self,
@@ -287,6 +291,7 @@ class CpsSequence:
         solution: CpsSolution | None = None,
     ) -> CpsStep:
         self._time = self._stamp(obs, timestamp)
+        self._parent = None
         step = CpsStep(
             index=len(self._steps),
             kind=kind,

@@ -151,3 +151,29 @@ def test_bad_input():
     with pytest.raises(ValueError, match="covariance"):
         ChildObservation("a", [1.0, 0.0, 0.0], np.eye(2))
     assert len(seq.steps) == 1  # failed steps leave no record
+
+
+def test_the_parent_pose_follows_every_step():
+    stations, children = leapfrog_truth(3)
+    names = ["c0", "c1"]
+    seq = CpsSequence(names, solver="wls")
+    assert seq.parent.yaw == 0.0
+    for k, spots in enumerate(children):
+        for phase, station in enumerate((stations[k], stations[k + 1])):
+            level = measure_from(*station, spots)
+            obs = [
+                ChildObservation(n, level[i], COV, timestamp=2.0 * k + phase)
+                for i, n in enumerate(names)
+            ]
+            step = (seq.children_moved if phase == 0 else seq.parent_moved)(obs)
+            # The same as a pose built afresh from the state, at every step.
+            fresh = ParentPose(
+                seq.state[0], seq.state[1:4], seq.state_covariance[:4, :4], step.timestamp
+            )
+            pose = seq.parent
+            assert pose.yaw == fresh.yaw
+            assert pose.timestamp == fresh.timestamp
+            np.testing.assert_array_equal(pose.translation, fresh.translation)
+            np.testing.assert_array_equal(pose.covariance, fresh.covariance)
+            np.testing.assert_array_equal(step.parent.translation, pose.translation)
+        assert seq.parent.yaw == pytest.approx(stations[k + 1][0], abs=1e-12)
