@@ -152,8 +152,7 @@ class TsaiCamera:
         row is NaN where its point lies behind the camera (z_c <= 0) or beyond the fold of
         a negative kappa1. Every other row is what :meth:`project` gives (the same
         computation, for any number of points at once)."""
-        p = check_points_3d(points_world)
-        return project_tsai(p, *self._intrinsics(), self.world2cam_r, self.world2cam_t)
+        return self._project(check_points_3d(points_world))
 
     def project(self, points_world: ArrayLike) -> NDArray[np.float64]:
         """Project (N, 3) world points (m) to (N, 2) distorted pixels.
@@ -171,7 +170,7 @@ class TsaiCamera:
                 f"{int(behind.sum())} point(s) lie behind the camera, first in row {i} "
                 f"(z_c = {z[i]:.4g} m)"
             )
-        uv = self.project_or_nan(p)
+        uv = self._project(p)
         fold = np.isnan(uv[:, 0])
         if fold.any():
             i = int(np.argmax(fold))
@@ -180,6 +179,10 @@ class TsaiCamera:
                 f"(beyond the fold of kappa1 = {self.kappa1:.3g}), first in row {i}"
             )
         return uv
+
+    def _project(self, points_world: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(N, 3) checked world points -> (N, 2) pixels, NaN where not projectable."""
+        return project_tsai(points_world, *self._intrinsics(), self.world2cam_r, self.world2cam_t)
 
     def pixels_to_normalized(self, pixels: ArrayLike) -> NDArray[np.float64]:
         """(N, 2) distorted pixels -> (N, 2) undistorted normalised coordinates x_c/z_c."""
