@@ -105,10 +105,11 @@ def body_points(xy: ArrayLike, yaw: ArrayLike, points_body: ArrayLike, floor_z: 
     y = np.asarray(yaw, dtype=float).reshape(-1)
     b = np.asarray(points_body, dtype=float).reshape(-1, 3)
     c, s = np.cos(y)[:, None], np.sin(y)[:, None]
-    x = p[:, None, 0] + c * b[None, :, 0] - s * b[None, :, 1]
-    yy = p[:, None, 1] + s * b[None, :, 0] + c * b[None, :, 1]
-    z = np.broadcast_to(floor_z + b[None, :, 2], x.shape)
-    return np.stack([x, yy, z], axis=-1)
+    out = np.empty((*np.broadcast_shapes(p.shape[:1], y.shape), len(b), 3))
+    out[..., 0] = p[:, None, 0] + c * b[None, :, 0] - s * b[None, :, 1]
+    out[..., 1] = p[:, None, 1] + s * b[None, :, 0] + c * b[None, :, 1]
+    out[..., 2] = floor_z + b[None, :, 2]
+    return out
 
 
 MAST_RADIUS = 0.02
@@ -132,38 +133,49 @@ def _segment_distance(points: NDArray, a: NDArray, b: NDArray) -> NDArray:
     return np.linalg.norm(points - (a + t[:, None] * d), axis=1)
 
 
-def _point_segment_distance(p: NDArray, a: NDArray, b: NDArray) -> NDArray:
-    """(...) distances of (..., 3) points to the (..., 3) segments a-b, m."""
-    d = b - a
-    ap = p - a
-    t = ((ap * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-300)).clip(0.0, 1.0)
-    x = ap - t[..., None] * d
-    return np.sqrt((x * x).sum(-1))
-
-
 def segments_distance(p0: ArrayLike, p1: ArrayLike, q0: ArrayLike, q1: ArrayLike) -> NDArray:
     """(...) least distances between the (..., 3) segments p0-p1 and q0-q1, m (either may
     be a point).
 
-    The least distance of two segments lies at the closest points of their lines if both
-    fall inside the segments, else at an end of one of them. Segments within 1e-6 rad of
-    parallel (whose closest points are ill-conditioned) are measured at their ends only,
-    which overestimates their distance by less than 1e-6 of their lengths.
+    With ``r = p0 - q0``, ``u = p1 - p0`` and ``w = q1 - q0``, the squared distance of the
+    points at ``s`` and ``t`` along them is a quadratic in (s, t) on the unit square. Its
+    least value lies at the closest points of the lines if both fall inside the segments,
+    else at an end of one of them. Segments within 1e-6 rad of parallel (whose closest
+    points are ill-conditioned) are measured at their ends only, which overestimates their
+    distance by less than 1e-6 of their lengths. The squared distance is formed as a sum of
+    terms of the size of ``|r|^2``: a distance near 0 comes out as up to about 1e-8 ``|r|``.
     """
     p0, p1, q0, q1 = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (p0, p1, q0, q1)))
-    ends = _point_segment_distance(
-        np.stack([p0, p1, q0, q1]), np.stack([q0, q0, p0, p0]), np.stack([q1, q1, p1, p1])
-    ).min(axis=0)
+    shape = p0.shape[:-1]
+    # (3, N) coordinates: sums over the first axis are fast.
+    p0, p1, q0, q1 = (x.reshape(-1, 3).T for x in (p0, p1, q0, q1))
     u, w, r = p1 - p0, q1 - q0, p0 - q0
-    a, b, c = (u * u).sum(-1), (u * w).sum(-1), (w * w).sum(-1)
-    d, e = (u * r).sum(-1), (w * r).sum(-1)
+    a, b, c = (u * u).sum(0), (u * w).sum(0), (w * w).sum(0)
+    d, e, f = (u * r).sum(0), (w * r).sum(0), (r * r).sum(0)
+    b2, d2, e2 = 2.0 * b, 2.0 * d, 2.0 * e
+    # Squared distance at (s, t): s (a s + 2 d - 2 b t) + t (c t - 2 e) + f.
+    a_pos, c_pos = np.maximum(a, 1e-300), np.maximum(c, 1e-300)
+    t = _unit(e / c_pos)  # from p0
+    least = t * (c * t - e2) + f
+    t = _unit((b + e) / c_pos)  # from p1
+    least = np.minimum(least, (a + d2 - b2 * t) + t * (c * t - e2) + f)
+    s = _unit(-d / a_pos)  # from q0
+    least = np.minimum(least, s * (a * s + d2) + f)
+    s = _unit((b - d) / a_pos)  # from q1
+    least = np.minimum(least, s * (a * s + d2 - b2) + (c - e2) + f)
     den = a * c - b * b
     inner = den > 1e-12 * a * c
     den = np.where(inner, den, 1.0)
     s, t = (b * e - c * d) / den, (a * e - b * d) / den
     inner &= (s >= 0.0) & (s <= 1.0) & (t >= 0.0) & (t <= 1.0)
-    x = r + s[..., None] * u - t[..., None] * w
-    return np.where(inner, np.minimum(ends, np.sqrt((x * x).sum(-1))), ends)
+    between = s * (a * s + d2 - b2 * t) + t * (c * t - e2) + f
+    least = np.where(inner, np.minimum(least, between), least)
+    return np.sqrt(np.maximum(least, 0.0)).reshape(shape)
+
+
+def _unit(x: NDArray) -> NDArray:
+    """``x`` clipped to [0, 1]."""
+    return np.minimum(np.maximum(x, 0.0), 1.0)
 
 
 SIGHT_SAMPLES = 0.6
