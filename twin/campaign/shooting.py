@@ -95,12 +95,16 @@ def _pair_labels(
     (the triangle is scalene: its sides tell its corners apart), and the worst misfit, m."""
     best: tuple[tuple[int, ...], float] = ((), np.inf)
     n = len(points)
-    for labels in itertools.permutations(range(len(cubes_body)), n):
+    pairs = list(itertools.combinations(range(n), 2))
+    measured = {(a, b): np.linalg.norm(points[a] - points[b]) for a, b in pairs}
+    k = len(cubes_body)
+    body = {
+        (i, j): np.linalg.norm(cubes_body[i] - cubes_body[j]) for i in range(k) for j in range(k)
+    }
+    for labels in itertools.permutations(range(k), n):
         misfit = 0.0
-        for a, b in itertools.combinations(range(n), 2):
-            d_meas = np.linalg.norm(points[a] - points[b])
-            d_body = np.linalg.norm(cubes_body[labels[a]] - cubes_body[labels[b]])
-            misfit = max(misfit, abs(d_meas - d_body))
+        for a, b in pairs:
+            misfit = max(misfit, abs(measured[a, b] - body[labels[a], labels[b]]))
         if misfit < best[1]:
             best = (labels, misfit)
     return best
