@@ -39,7 +39,11 @@ def polar_to_cartesian(polar: ArrayLike) -> NDArray[np.float64]:
     p = _as_triplets(polar, "polar")
     d, hz, v = p[..., 0], p[..., 1], p[..., 2]
     sv = np.sin(v)
-    return np.stack([d * sv * np.cos(hz), d * sv * np.sin(hz), d * np.cos(v)], axis=-1)
+    out = np.empty(p.shape)
+    out[..., 0] = d * sv * np.cos(hz)
+    out[..., 1] = d * sv * np.sin(hz)
+    out[..., 2] = d * np.cos(v)
+    return out
 
 
 def cartesian_to_polar(points: ArrayLike) -> NDArray[np.float64]:
@@ -53,8 +57,11 @@ def cartesian_to_polar(points: ArrayLike) -> NDArray[np.float64]:
         raise ValueError("points contain the instrument centre (0, 0, 0); no direction defined")
     hz = np.mod(np.arctan2(p[..., 1], p[..., 0]), TWO_PI)
     hz = np.where(hz >= TWO_PI, 0.0, hz)
-    v = np.arctan2(np.hypot(p[..., 0], p[..., 1]), p[..., 2])
-    return np.stack([d, hz, v], axis=-1)
+    out = np.empty(p.shape)
+    out[..., 0] = d
+    out[..., 1] = hz
+    out[..., 2] = np.arctan2(np.hypot(p[..., 0], p[..., 1]), p[..., 2])
+    return out
 
 
 def polar_to_cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:

@@ -54,9 +54,12 @@ def tilt_rotation(roll: ArrayLike, pitch: ArrayLike) -> NDArray[np.float64]:
     """R_instrument2level = Ry(pitch) @ Rx(roll) for (...,) angles in rad -> (..., 3, 3)."""
     roll, pitch = np.broadcast_arrays(np.asarray(roll, float), np.asarray(pitch, float))
     cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
-    zero = np.zeros_like(cr)
-    rows = [[cp, sp * sr, sp * cr], [zero, cr, -sr], [-sp, cp * sr, cp * cr]]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    rows = [[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]]
+    out = np.empty((*roll.shape, 3, 3))
+    for i, row in enumerate(rows):
+        for j, value in enumerate(row):
+            out[..., i, j] = value
+    return out
 
 
 def tilt_from_orientation(instrument2world: ArrayLike) -> tuple[float, float]:
