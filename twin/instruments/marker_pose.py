@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from twin.instruments.arrays import matrices
 from twin.instruments.consistency import NUMERICAL_FLOOR, chi2_statistic
 from twin.instruments.marker import MarkerAssembly
 
@@ -36,14 +37,14 @@ MARKER_DOF = 3
 
 _SIDES = ((0, 1), (1, 2), (2, 0))
 
+_CENTROID = np.tile(np.eye(3), 3) / 3.0
+"""(3, 9) the mean of three cubes as a linear map of their coordinates."""
+_CENTROID.setflags(write=False)
+
 
 def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    zero = np.zeros_like(x)
-    return np.stack(
-        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
-        axis=-2,
-    )
+    return matrices([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]], x.shape)
 
 
 def check_cubes(cubes: ArrayLike, name: str = "cubes") -> NDArray[np.float64]:
@@ -216,5 +217,4 @@ def cube_centroid(
     """
     m = check_cubes(cubes_measured, "cubes_measured")
     sigma = check_cube_covariance(covariance)
-    avg = np.tile(np.eye(3), 3) / 3.0  # (3, 9)
-    return m.mean(axis=0), avg @ sigma @ avg.T
+    return m.mean(axis=0), _CENTROID @ sigma @ _CENTROID.T

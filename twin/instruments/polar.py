@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from twin.instruments.arrays import matrices
 from twin.instruments.tilt import TiltReading
 
 TWO_PI = 2.0 * np.pi
@@ -72,13 +73,12 @@ def polar_to_cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:
     p = _as_triplets(polar, "polar")
     d, hz, v = p[..., 0], p[..., 1], p[..., 2]
     sh, ch, sv, cv = np.sin(hz), np.cos(hz), np.sin(v), np.cos(v)
-    zero = np.zeros_like(d)
     rows = [
         [sv * ch, -d * sv * sh, d * cv * ch],
         [sv * sh, d * sv * ch, d * cv * sh],
-        [cv, zero, -d * sv],
+        [cv, 0.0, -d * sv],
     ]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    return matrices(rows, d.shape)
 
 
 def cartesian_to_polar_jacobian(points: ArrayLike) -> NDArray[np.float64]:

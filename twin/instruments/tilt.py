@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from twin.instruments.arrays import matrices
 from twin.instruments.errors import TiltOutOfRangeError
 from twin.instruments.total_station import ARCSEC, InclinometerSpec
 
@@ -55,11 +56,7 @@ def tilt_rotation(roll: ArrayLike, pitch: ArrayLike) -> NDArray[np.float64]:
     roll, pitch = np.broadcast_arrays(np.asarray(roll, float), np.asarray(pitch, float))
     cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
     rows = [[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]]
-    out = np.empty((*roll.shape, 3, 3))
-    for i, row in enumerate(rows):
-        for j, value in enumerate(row):
-            out[..., i, j] = value
-    return out
+    return matrices(rows, roll.shape)
 
 
 def tilt_from_orientation(instrument2world: ArrayLike) -> tuple[float, float]:
@@ -140,9 +137,6 @@ def tilt_covariance(points_level: ArrayLike, spec: InclinometerSpec) -> NDArray[
     """
     p = np.asarray(points_level, dtype=float)
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    zero = np.zeros_like(x)
     # d_theta x p = G @ (d_roll, d_pitch) with G the first two columns of -[p]_x.
-    g = np.stack(
-        [np.stack([zero, z], -1), np.stack([-z, zero], -1), np.stack([y, -x], -1)], axis=-2
-    )
+    g = matrices([[0.0, z], [-z, 0.0], [y, -x]], x.shape)
     return spec.sigma**2 * np.einsum("...ik,...jk->...ij", g, g)
