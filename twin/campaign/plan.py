@@ -20,7 +20,6 @@ from twin.campaign.geometry import (
     free,
     parent_profile,
     passes_near,
-    prisms_hidden,
     sight_clear,
     unhidden_yaw,
 )
@@ -106,8 +105,12 @@ def formation(
                 stops = []
                 for xy, yaw in places:
                     turned = unhidden_yaw(xy, yaw, cubes, stations, scenario.space.floor_z)
-                    stops.append(Stop(xy, yaw if turned is None else turned))
-                if _formation_ok(scenario, stops, stations, cubes, ts.range_min, ts.range_max):
+                    if turned is None:
+                        break  # every heading hides a prism from a station
+                    stops.append(Stop(xy, turned))
+                if len(stops) == len(places) and _formation_ok(
+                    scenario, stops, stations, cubes, ts.range_min, ts.range_max
+                ):
                     return stops
     return None
 
@@ -133,6 +136,8 @@ def _formation_ok(
     range_min: float,
     range_max: float,
 ) -> bool:
+    """Whether the children's stops suit both stations: see :func:`formation`. Their
+    headings already keep every prism clear of its own assembly (:func:`unhidden_yaw`)."""
     xy = np.array([s.xy for s in stops])
     if not _places_ok(scenario, list(xy), stations):
         return False
@@ -145,8 +150,6 @@ def _formation_ok(
             if d.min() < range_min + RANGE_MARGIN or d.max() > range_max:
                 return False
             if not sight_clear(scenario, inst, pts).all():
-                return False
-            if prisms_hidden(stop.xy, stop.yaw, cubes, inst, floor).any():
                 return False
             other = xy[1 - k]
             if passes_near(inst, pts, other, child_profile(floor)).any():
