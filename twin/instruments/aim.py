@@ -47,7 +47,10 @@ def angles_from_direction(points: ArrayLike, direction: ArrayLike) -> NDArray[np
     u = u / np.linalg.norm(u)
     n = np.linalg.norm(p, axis=-1)
     cos = np.einsum("...i,i->...", p, u) / n
-    sin = np.linalg.norm(np.cross(p, u), axis=-1) / n
+    # |p x u|: np.cross's products and np.linalg.norm's sum, without their overhead.
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    cx, cy, cz = y * u[2] - z * u[1], z * u[0] - x * u[2], x * u[1] - y * u[0]
+    sin = np.sqrt(cx * cx + cy * cy + cz * cz) / n
     return np.arctan2(sin, cos)
 
 

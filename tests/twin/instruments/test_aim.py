@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from twin.instruments.aim import angles_from_direction, auto_aim
 from twin.instruments.errors import (
@@ -123,3 +125,19 @@ def test_bad_input():
         auto_aim([[np.nan, 0, 0]], [1.0, 0.0, 0.0], SPEC)
     with pytest.raises(ValueError, match="shape"):
         auto_aim(np.zeros((0, 3)), [1.0, 0.0, 0.0], SPEC)
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    points=st.lists(st.tuples(*[st.floats(-50.0, 50.0)] * 3), min_size=1, max_size=8),
+    direction=st.tuples(*[st.floats(-5.0, 5.0)] * 3),
+)
+def test_angles_from_direction_are_those_of_the_cross_product(points, direction):
+    p, u = np.array(points), np.array(direction)
+    if np.linalg.norm(u) < 1e-3 or np.any(np.linalg.norm(p, axis=1) < 1e-3):
+        return
+    unit = u / np.linalg.norm(u)
+    n = np.linalg.norm(p, axis=-1)
+    cos = np.einsum("...i,i->...", p, unit) / n
+    expected = np.arctan2(np.linalg.norm(np.cross(p, unit), axis=-1) / n, cos)
+    assert np.array_equal(angles_from_direction(p, u), expected)
