@@ -48,12 +48,14 @@ def path_clear(
     return bool(free(scenario, pts, clearance).all())
 
 
-def sight_clear(scenario: Scenario, starts: ArrayLike, ends: ArrayLike) -> NDArray[np.bool_]:
-    """(N,) whether the map's obstacles leave each 3D segment free."""
+def sight_clear(
+    scenario: Scenario, starts: ArrayLike, ends: ArrayLike, margin: float = 0.0
+) -> NDArray[np.bool_]:
+    """(N,) whether the map's obstacles leave each 3D segment free (by ``margin``, m)."""
     a = np.asarray(starts, dtype=float).reshape(-1, 3)
     b = np.asarray(ends, dtype=float).reshape(-1, 3)
     a, b = np.broadcast_arrays(a, b)
-    return ~segment_blocked(scenario.space, a, b)
+    return ~segment_blocked(scenario.space, a, b, margin=margin)
 
 
 def passes_near(

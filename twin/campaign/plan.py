@@ -39,6 +39,11 @@ FORMATION_CLEARANCE = 0.35
 """Distance kept between a child's centre and walls in the formation, m (its radius, 0.29 m,
 and its stopping error: narrow corridors need the children close to the walls)."""
 
+SIGHT_MARGIN = 0.10
+"""A formation's lines of sight pass obstacles by at least this much, m: a child stops
+centimetres from its goal (further on wheel odometry), and a prism planned to graze a
+corner would be hidden."""
+
 RANGE_MARGIN = 0.3
 """Prisms are planned at least this much beyond the instrument's minimum range, m."""
 
@@ -72,6 +77,7 @@ def formation(
     direction: float,
     form: Formation,
     instrument_z: float,
+    waiting_xy: ArrayLike | None = None,
 ) -> list[Stop] | None:
     """Stops of the two children ahead of the parent's next station.
 
@@ -80,6 +86,9 @@ def formation(
     instrument at both the parent's current and next stations, and the two must be at least
     ``MIN_SEPARATION`` apart seen from both. Smaller, mirrored and zero offsets and shorter
     gaps are tried in turn. Returns the far child's stop first (it moves first), or None.
+
+    ``waiting_xy`` (2,), m: where the other child stands while the far one is measured from
+    the current station (it moves second); it must not hide the far child's prisms.
     """
     cubes = np.asarray(scenario.marker.cubes, dtype=float)
     ts = scenario.noise.total_station
@@ -109,7 +118,7 @@ def formation(
                         break  # every heading hides a prism from a station
                     stops.append(Stop(xy, turned))
                 if len(stops) == len(places) and _formation_ok(
-                    scenario, stops, stations, cubes, ts.range_min, ts.range_max
+                    scenario, stops, stations, cubes, ts.range_min, ts.range_max, waiting_xy
                 ):
                     return stops
     return None
@@ -135,6 +144,7 @@ def _formation_ok(
     cubes: NDArray[np.float64],
     range_min: float,
     range_max: float,
+    waiting_xy: ArrayLike | None = None,
 ) -> bool:
     """Whether the children's stops suit both stations: see :func:`formation`. Their
     headings already keep every prism clear of its own assembly (:func:`unhidden_yaw`)."""
@@ -142,6 +152,10 @@ def _formation_ok(
     if not _places_ok(scenario, list(xy), stations):
         return False
     floor = scenario.space.floor_z
+    if waiting_xy is not None:
+        far = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
+        if passes_near(stations[0], far, waiting_xy, child_profile(floor)).any():
+            return False
     for inst in stations:
         bearings = []
         for k, stop in enumerate(stops):
@@ -149,7 +163,7 @@ def _formation_ok(
             d = np.linalg.norm(pts - inst, axis=1)
             if d.min() < range_min + RANGE_MARGIN or d.max() > range_max:
                 return False
-            if not sight_clear(scenario, inst, pts).all():
+            if not sight_clear(scenario, inst, pts, SIGHT_MARGIN).all():
                 return False
             other = xy[1 - k]
             if passes_near(inst, pts, other, child_profile(floor)).any():

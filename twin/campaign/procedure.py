@@ -338,9 +338,18 @@ class Campaign:
             last = len(goals) == 1
             next_xy = station if last else self.path.at(s_next)
             z = float(self.cps.parent.translation[2])
+            waiting = self._child_pose(self._children_in_order(direction)[1])[:2]
             with timed(self.rig.timings, "planning"):
                 stops = formation(
-                    self.sc, self.path, s_next, parent_xy, next_xy, direction, self.cfg.formation, z
+                    self.sc,
+                    self.path,
+                    s_next,
+                    parent_xy,
+                    next_xy,
+                    direction,
+                    self.cfg.formation,
+                    z,
+                    waiting_xy=waiting,
                 )
             if stops is None:
                 # No room for the children ahead: a shorter leg (down to a quarter step).
@@ -362,10 +371,15 @@ class Campaign:
                     return False
         return True
 
+    def _children_in_order(self, direction: float) -> list[str]:
+        """The two children, the one furthest ahead along the route first (it moves first)."""
+        s = {c: self.path.project(self._child_pose(c)[:2], near=self._s) for c in self.children[:2]}
+        return sorted(s, key=lambda c: direction * s[c], reverse=True)
+
     def _move_children(self, stops: list[Stop], direction: float) -> None:
         """Send the children to their formation stops (the far one first) and measure them."""
-        s = {c: self.path.project(self._child_pose(c)[:2], near=self._s) for c in self.children[:2]}
-        order = sorted(s, key=lambda c: direction * s[c], reverse=True)
+        order = self._children_in_order(direction)
+        s = {c: self.path.project(self._child_pose(c)[:2], near=self._s) for c in order}
         for child, stop in zip(order, stops, strict=True):
             s_stop = self.path.project(stop.xy, near=self._s)
             drive = self._drive_along(self.rig.children[child], s[child], s_stop, stop)

@@ -75,22 +75,30 @@ def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDA
     )
 
 
-def _boxes(space: Space, obstacles: tuple[Obstacle, ...]) -> tuple[NDArray, ...]:
+def _boxes(
+    space: Space, obstacles: tuple[Obstacle, ...], margin: float = 0.0
+) -> tuple[NDArray, ...]:
     """The obstacles' boxes as arrays: (O, 2) centres, (O,) cos and sin of their yaws, and
-    (O, 3) lowest and highest corners in their own frames (see :func:`world2box`), m."""
+    (O, 3) lowest and highest corners in their own frames (see :func:`world2box`), m; the
+    sides and the top moved out by ``margin``, m."""
     obs = obstacles or space.obstacles
     centre = np.array([ob.center for ob in obs], dtype=float).reshape(-1, 2)
     yaw = [ob.yaw for ob in obs]
     c = np.array([np.cos(y) for y in yaw])
     s = np.array([np.sin(y) for y in yaw])
     size = np.array([ob.size for ob in obs], dtype=float).reshape(-1, 3)
-    lo = np.column_stack([-0.5 * size[:, 0], -0.5 * size[:, 1], np.full(len(obs), space.floor_z)])
-    hi = np.column_stack([0.5 * size[:, 0], 0.5 * size[:, 1], space.floor_z + size[:, 2]])
+    half = 0.5 * size[:, :2] + margin
+    lo = np.column_stack([-half, np.full(len(obs), space.floor_z)])
+    hi = np.column_stack([half, space.floor_z + size[:, 2] + margin])
     return centre, c, s, lo, hi
 
 
 def segment_blocked(
-    space: Space, starts: ArrayLike, ends: ArrayLike, obstacles: tuple[Obstacle, ...] = ()
+    space: Space,
+    starts: ArrayLike,
+    ends: ArrayLike,
+    obstacles: tuple[Obstacle, ...] = (),
+    margin: float = 0.0,
 ) -> NDArray[np.bool_]:
     """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
 
@@ -100,11 +108,12 @@ def segment_blocked(
         space: gives the floor height (obstacles stand on the floor).
         starts, ends: (N, 3) world points, m.
         obstacles: the boxes to test (default: all of the space's obstacles).
+        margin: pass at least this far from every box's sides and top, m.
     """
     a = np.array(starts, dtype=float, ndmin=2)
     b = np.array(ends, dtype=float, ndmin=2)
     a, b = np.broadcast_arrays(a, b)
-    centre, c, s, lo, hi = (x[:, None] for x in _boxes(space, obstacles))
+    centre, c, s, lo, hi = (x[:, None] for x in _boxes(space, obstacles, margin))
     # Both ends in each obstacle's frame, (O, N) per axis (as world2box).
     qa, qb = [], []
     for p, q in ((a, qa), (b, qb)):

@@ -98,3 +98,31 @@ def test_farthest_first_order(n, seed):
     order = _farthest_first(feats, start)
     assert order == _farthest_first_reference(feats, start)
     assert sorted(order) == list(range(n))
+
+
+def test_the_child_that_waits_does_not_hide_the_one_measured_first(hall):
+    # On the way east past the island: the parent at s = 26.3 m, the next station 4.6 m on.
+    from twin.campaign.geometry import child_profile, passes_near
+    from twin.campaign.plan import formation
+    from twin.campaign.route import RoutePath
+
+    path = RoutePath(hall.route.waypoints)
+    here, s_next = np.array([26.26, 0.0]), 30.84
+    there = path.at(s_next)
+    z, floor = 0.0, hall.space.floor_z
+    cubes = np.asarray(hall.marker.cubes, dtype=float)
+    free_stops = formation(hall, path, s_next, here, there, 1.0, hall.campaign.formation, z)
+    assert free_stops is not None
+    # A child waiting right on the line of sight to where the far child would stop.
+    far = free_stops[0]
+    waiting = here + 0.3 * (np.asarray(far.xy) - here)
+    stops = formation(
+        hall, path, s_next, here, there, 1.0, hall.campaign.formation, z, waiting_xy=waiting
+    )
+    assert stops is not None
+    assert not np.allclose(stops[0].xy, far.xy)
+    inst = np.array([here[0], here[1], z])
+    prisms = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
+    assert not passes_near(inst, prisms, waiting, child_profile(floor)).any()
+    blocked = body_points(far.xy, far.yaw, cubes, floor)[0]
+    assert passes_near(inst, blocked, waiting, child_profile(floor)).any()

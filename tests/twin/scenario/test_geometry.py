@@ -54,3 +54,16 @@ def test_a_segment_through_a_box_is_blocked_and_one_above_is_not(space):
     assert segment_blocked(space, [x - 10, y, 0.0], [x + 10, y, 0.0])[0]
     assert not segment_blocked(space, [x - 10, y, top + 0.1], [x + 10, y, top + 0.1])[0]
     assert not segment_blocked(space, np.zeros((0, 3)), np.zeros((0, 3))).size
+
+
+def test_a_margin_keeps_segments_off_a_boxs_sides_and_top(space):
+    island = next(ob for ob in space.obstacles if ob.name == "island")
+    x, y = island.center
+    south = y - 0.5 * island.size[1]
+    top = space.floor_z + island.size[2]
+    grazing = ([x - 10, south - 0.05, 0.5], [x + 10, south - 0.05, 0.5])  # 5 cm off its side
+    over = ([x - 10, y, top + 0.05], [x + 10, y, top + 0.05])  # 5 cm over its top
+    for a, b in (grazing, over):
+        assert not segment_blocked(space, a, b)[0]
+        assert not segment_blocked(space, a, b, margin=0.04)[0]
+        assert segment_blocked(space, a, b, margin=0.06)[0]
