@@ -40,6 +40,11 @@ LED_ON_EMISSION = 5.0
 # contact is the same collision (contacts flicker while a robot pushes against something).
 COLLISION_DEBOUNCE_TICKS = 25
 
+NOSLIP_ITERATIONS = 2
+"""Iterations of MuJoCo's no-slip solver: without it soft contacts let a parked robot creep
+under a sustained sideways load (a wheel resting on the edge of a floor patch moved a
+child 1.8 cm in 30 s, and the parent's CPS fix failed its consistency test)."""
+
 FELL_OVER_TILT = np.radians(30.0)
 """A robot whose body leans further than this from the vertical has fallen over, rad."""
 
@@ -64,6 +69,7 @@ def build_spec(
     spec.compiler.degree = False
     spec.option.timestep = scenario.sim.timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.noslip_iterations = NOSLIP_ITERATIONS
     max_w = max(c.image_size[0] for c in scenario.cameras)
     max_h = max(c.image_size[1] for c in scenario.cameras)
     spec.visual.global_.offwidth = max(640, max_w)
