@@ -127,3 +127,15 @@ def test_without_ray_the_ray_engine_says_how_to_install_it(monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)
     with pytest.raises(RuntimeError, match=r"pip install 'camnet-twin\[cluster\]'"):
         make_engine("ray", 2)
+
+
+def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
+    from twin.cli import main
+
+    base = ["montecarlo", str(SMOKE), "--trials", "1", "--out", str(tmp_path / "mc")]
+    assert main([*base, "--ray-address", "auto"]) == 2
+    assert "--ray-address goes with --engine ray" in capsys.readouterr().out
+    assert main(["montecarlo", str(tmp_path / "none.toml"), "--trials", "1"]) == 2
+    with pytest.raises(SystemExit):
+        main([*base[:2], "--trials", "0"])
+    assert not (tmp_path / "mc").exists()
