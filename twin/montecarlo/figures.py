@@ -15,10 +15,8 @@ from matplotlib.figure import Figure
 
 from twin.montecarlo.sources import ALL
 from twin.montecarlo.summary import visits_of
-from twin.report.figures import no_data, save_figure
+from twin.report.figures import PALETTE, no_data, save_figure
 from twin.report.results import visit_name
-
-_COLOURS = ("#4e79a7", "#f28e2b", "#e15759", "#76b7b2", "#59a14f", "#edc948", "#b07aa1")
 
 
 def histograms(rows: Sequence[dict[str, Any]], summary: dict[str, Any], path: str | Path) -> Path:
@@ -39,14 +37,14 @@ def histograms(rows: Sequence[dict[str, Any]], summary: dict[str, Any], path: st
         if not err:
             no_data(ax, "no calibration")
             continue
-        ax.hist(err, bins=min(40, max(8, len(err) // 5)), color=_COLOURS[0], alpha=0.8)
+        ax.hist(err, bins=min(40, max(8, len(err) // 5)), color=PALETTE[0], alpha=0.8)
         s = by_visit[key]
         d = s["position_error_mm"]
         ax.axvline(d["median"], color="k", lw=1.2, label=f"median {d['median']:.1f} mm")
         ax.axvline(d["p90"], color="k", ls="--", lw=1, label=f"90 % {d['p90']:.1f} mm")
         pred = s["predicted"]["rms_mm"]
         if math.isfinite(pred):
-            ax.axvline(pred, color=_COLOURS[2], lw=1.2, label=f"predicted RMS {pred:.1f} mm")
+            ax.axvline(pred, color=PALETTE[2], lw=1.2, label=f"predicted RMS {pred:.1f} mm")
         travel = s["distance_travelled_m"]["median"]
         ax.set_title(f"{visit_name(key)}, {travel:.0f} m travelled", fontsize=9)
         ax.set_xlabel("camera position error [mm]")
@@ -70,10 +68,10 @@ def error_vs_distance(summary: dict[str, Any], path: str | Path) -> Path:
     p90 = np.array([v["position_error_mm"]["p90"] for v in vs])
     rms = np.array([v["position_error_mm"]["rms"] for v in vs])
     pred = np.array([v["predicted"]["rms_mm"] for v in vs])
-    ax.vlines(x, med, p90, color=_COLOURS[0], lw=2, alpha=0.5, label="median to 90 %")
-    ax.plot(x, med, "o", color=_COLOURS[0], label="median")
+    ax.vlines(x, med, p90, color=PALETTE[0], lw=2, alpha=0.5, label="median to 90 %")
+    ax.plot(x, med, "o", color=PALETTE[0], label="median")
     ax.plot(x, rms, "s", mfc="none", color="k", label="Monte-Carlo RMS")
-    ax.plot(x, pred, "x", color=_COLOURS[2], ms=9, mew=2, label="predicted RMS")
+    ax.plot(x, pred, "x", color=PALETTE[2], ms=9, mew=2, label="predicted RMS")
     for xi, yi, v in zip(x, p90, vs, strict=True):
         ax.annotate(
             visit_name((v["camera"], v["visit"])),
@@ -88,7 +86,7 @@ def error_vs_distance(summary: dict[str, Any], path: str | Path) -> Path:
             [parent["distance_travelled_m"]],
             [parent["rms_3d"]["mc_mm"]],
             "D",
-            color=_COLOURS[4],
+            color=PALETTE[4],
             label="parent's final position (RMS)",
         )
     ax.set_xlabel("distance travelled by the parent [m]")
@@ -120,7 +118,7 @@ def budget_bars(budget: dict[str, Any] | None, path: str | Path) -> Path:
             labels,
             100 * share,
             bottom=100 * bottom,
-            color=_COLOURS[i % len(_COLOURS)],
+            color=PALETTE[i % len(PALETTE)],
             label=source.replace("_", " "),
         )
         bottom += share

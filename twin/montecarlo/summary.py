@@ -35,6 +35,11 @@ def _finite(values: Sequence[float]) -> np.ndarray:
     return a[np.isfinite(a)]
 
 
+def _rms(a: np.ndarray) -> float:
+    """Root mean square of ``a``, NaN when it is empty."""
+    return float(np.sqrt(np.mean(a**2))) if len(a) else math.nan
+
+
 def distribution(values: Sequence[float]) -> dict[str, float | int]:
     """Median, 90th and 99th percentile, mean, RMS and count of the finite values."""
     a = _finite(values)
@@ -54,7 +59,7 @@ def distribution(values: Sequence[float]) -> dict[str, float | int]:
         "p90": float(p[1]),
         "p99": float(p[2]),
         "mean": float(a.mean()),
-        "rms": float(np.sqrt(np.mean(a**2))),
+        "rms": _rms(a),
     }
 
 
@@ -79,11 +84,11 @@ def visit_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> list[dic
     for visit in visits_of(rows):
         mine = _select(rows, config, visit)
         made = [r for r in mine if r["calibrated"]]
-        transfer = _finite([r["predicted_transfer_rms_mm"] for r in made])
-        own = _finite([r["predicted_calibration_rms_mm"] for r in made])
-        predicted = float(np.sqrt(np.mean(transfer**2) + np.mean(own**2))) if len(own) else math.nan
+        transfer = _rms(_finite([r["predicted_transfer_rms_mm"] for r in made]))
+        own = _rms(_finite([r["predicted_calibration_rms_mm"] for r in made]))
+        predicted = math.hypot(transfer, own)
         mc = distribution([r["position_error_mm"] for r in made])
-        ratio = mc["rms"] / predicted if predicted and predicted > 0 else math.nan
+        ratio = mc["rms"] / predicted if predicted > 0 else math.nan
         out.append(
             {
                 "camera": visit[0],
@@ -93,10 +98,8 @@ def visit_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> list[dic
                 "distance_travelled_m": distribution([r["distance_travelled_m"] for r in made]),
                 **{m: distribution([r[m] for r in made]) for m in METRICS},
                 "predicted": {
-                    "transfer_rms_mm": float(np.sqrt(np.mean(transfer**2)))
-                    if len(transfer)
-                    else math.nan,
-                    "calibration_rms_mm": float(np.sqrt(np.mean(own**2))) if len(own) else math.nan,
+                    "transfer_rms_mm": transfer,
+                    "calibration_rms_mm": own,
                     "rms_mm": predicted,
                     "mc_over_predicted": ratio,
                     "agrees": bool(AGREEMENT[0] <= ratio <= AGREEMENT[1]),
@@ -122,7 +125,7 @@ def parent_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> dict[st
         err = _finite([r[f"parent_final_d{axis}_mm"] for r in trials])
         pred = _finite([r[f"parent_predicted_s{axis}_mm"] for r in trials])
         mc = float(np.std(err, ddof=1)) if len(err) > 1 else math.nan
-        p = float(np.sqrt(np.mean(pred**2))) if len(pred) else math.nan
+        p = _rms(pred)
         out[axis] = {
             "mc_std_mm": mc,
             "mc_mean_mm": float(err.mean()) if len(err) else math.nan,

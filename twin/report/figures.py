@@ -39,7 +39,7 @@ from twin.scenario.schema import Obstacle, Scenario
 
 DPI = 120
 
-_TAB10 = (
+PALETTE = (
     "#1f77b4",
     "#ff7f0e",
     "#2ca02c",
@@ -60,7 +60,7 @@ def camera_colours(scenario: Scenario | None, results: Results) -> dict[str, str
         name = visit_key(entry)[0]
         if name not in names:
             names.append(name)
-    return {name: _TAB10[i % len(_TAB10)] for i, name in enumerate(names)}
+    return {name: PALETTE[i % len(PALETTE)] for i, name in enumerate(names)}
 
 
 def save_figure(fig: Figure, path: str | Path) -> Path:
