@@ -48,7 +48,7 @@ from twin.campaign.records import (
     Stage,
 )
 from twin.campaign.route import RoutePath
-from twin.campaign.shooting import measure_child
+from twin.campaign.shooting import measure_child, oriented_on, same_marker
 from twin.hal.devices import MobileBase
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
@@ -406,11 +406,25 @@ class Campaign:
             odo = self.rig.parent.odometry()
             guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
             self.rig.total_station.read_inclination()
-            obs = []
-            for child in self.children:
+            # A retry starts from the other child: the first one measured orients the aim
+            # at the next, and a wrong first one must not spoil every attempt.
+            order = self.children if attempt % 2 == 0 else self.children[::-1]
+            obs: list[ChildObservation] = []
+            for child in order:
                 o = self._measure(child, guess)
-                if o is not None:
-                    obs.append(o)
+                if o is None:
+                    continue
+                twin = next((p for p in obs if same_marker(p.point_level, o.point_level)), None)
+                if twin is not None:
+                    self._fail(
+                        "wrong_child",
+                        f"{child}'s shots found {twin.child}'s marker again",
+                        robot=child,
+                        attempt=attempt,
+                    )
+                    continue
+                obs.append(o)
+                guess = oriented_on(guess, self.cps.child_position(child)[0], o.point_level)
             if len(obs) < 2:
                 self._fail("parent_fix_failed", f"measured {len(obs)} children", robot="parent")
                 continue
@@ -419,6 +433,9 @@ class Campaign:
                     self.cps.parent_moved(obs)
             except InconsistentChildrenError as exc:
                 self._fail("inconsistent_children", str(exc), robot="parent", attempt=attempt)
+                continue
+            except ValueError as exc:  # geometry that cannot fix the yaw (children in line)
+                self._fail("parent_fix_failed", str(exc), robot="parent", attempt=attempt)
                 continue
             pose = self.cps.parent
             self.rig.parent.set_pose(

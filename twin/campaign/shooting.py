@@ -27,7 +27,7 @@ from twin.instruments.errors import (
 )
 from twin.instruments.marker import MarkerAssembly
 from twin.localization.observation import ChildObservation, observe_child
-from twin.localization.planar import rot_z
+from twin.localization.planar import rot_z, wrap_angle
 from twin.localization.pose import ParentPose
 
 SWEEP_DEG = (2.0, -2.0, 4.0, -4.0, 6.0, -6.0)
@@ -67,6 +67,14 @@ SEARCH_DEG = (8.0, -8.0, 12.0, -12.0, 16.0, -16.0, 22.0, -22.0, 28.0, -28.0, 35.
 
 DISTINCT = 0.02
 """Two shots closer than this, m, locked the same prism."""
+
+SAME_MARKER = 0.15
+"""Two children measured closer than this, m, are one marker measured twice: the robots'
+bodies keep their masts farther apart."""
+
+MIN_ORIENTING_RANGE = 1.0
+"""A child nearer than this, m, is not used to correct the parent's heading: a few
+centimetres of the parent's position error would turn its bearing too much."""
 
 
 def _shoot(
@@ -135,6 +143,39 @@ def _turned_onto(
     a = math.atan2(point[1], point[0]) - math.atan2(predicted[k, 1], predicted[k, 0])
     turned = predicted @ rot_z(a).T
     return turned + (point - turned[k])
+
+
+def oriented_on(
+    guess: ParentPose, child_world: NDArray[np.float64], measured_level: NDArray[np.float64]
+) -> ParentPose:
+    """The parent's guessed pose turned about its vertical axis so that a child's bearing,
+    predicted from its world position, is the bearing it was measured at.
+
+    A parent that turned in place knows its heading from odometry to a few degrees (a
+    skid-steered robot's wheels scrub), which can send the aim at the wrong child; its
+    position is known far better. Surveyors orient on the first backsight before aiming at
+    the next: so does the campaign.
+
+    Args:
+        guess: the parent's pose guess (yaw and translation in W).
+        child_world: (3,) the child's reference point in W, m.
+        measured_level: (3,) the same point measured in the parent's levelled frame, m.
+
+    Returns:
+        The guess with its yaw corrected, or the guess itself when the child is nearer
+        than :data:`MIN_ORIENTING_RANGE`.
+    """
+    predicted = (np.asarray(child_world, float) - guess.translation) @ guess.rotation
+    measured = np.asarray(measured_level, float)
+    if min(np.hypot(*predicted[:2]), np.hypot(*measured[:2])) < MIN_ORIENTING_RANGE:
+        return guess
+    turn = math.atan2(predicted[1], predicted[0]) - math.atan2(measured[1], measured[0])
+    return ParentPose(float(wrap_angle(guess.yaw + turn)), guess.translation, guess.covariance)
+
+
+def same_marker(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
+    """Whether two children's measured reference points, (3,) m, are one marker."""
+    return bool(np.linalg.norm(np.asarray(a, float)[:2] - np.asarray(b, float)[:2]) < SAME_MARKER)
 
 
 def shoot_cubes(

@@ -70,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from twin.montecarlo import run_montecarlo
     from twin.montecarlo.sources import configurations
+    from twin.montecarlo.trial import TrialFailed
 
     if args.ray_address and args.engine != "ray":
         console.print("[red]error:[/red] --ray-address goes with --engine ray")
@@ -115,6 +116,10 @@ def run(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 progress=show,
             )
+        except TrialFailed as exc:
+            console.print(f"[red]error:[/red] {exc}", highlight=False)
+            console.print(f"the finished trials are in {out}; --resume continues the run")
+            return 1
         except (ValueError, FileNotFoundError, RuntimeError) as exc:
             console.print(f"[red]error:[/red] {exc}")
             return 2

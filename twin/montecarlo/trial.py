@@ -67,6 +67,10 @@ class TrialSpec:
     fidelity: str
 
 
+class TrialFailed(RuntimeError):
+    """A trial raised: the message names the trial, its seed and how to run it alone."""
+
+
 @dataclass(frozen=True)
 class TrialResult:
     """A finished trial: its rows and the wall time it took, s."""
@@ -84,14 +88,22 @@ def run_trial(spec: TrialSpec) -> TrialResult:
     t0 = time.perf_counter()
     scenario = isolate(spec.scenario, spec.config)
     with tempfile.TemporaryDirectory(prefix="twin-trial-") as tmp:
-        results = run_scenario(
-            scenario,
-            tmp,
-            fidelity=spec.fidelity,
-            seed=spec.seed,
-            report=False,
-            advertised_noise=spec.scenario.noise,
-        )
+        try:
+            results = run_scenario(
+                scenario,
+                tmp,
+                fidelity=spec.fidelity,
+                seed=spec.seed,
+                report=False,
+                advertised_noise=spec.scenario.noise,
+            )
+        except Exception as exc:
+            alone = "" if spec.config == "all" else f" (with {spec.config} noise alone)"
+            raise TrialFailed(
+                f"trial {spec.trial} of {spec.config!r} (seed {spec.seed}) failed: "
+                f"{type(exc).__name__}: {exc}. It runs alone{alone} with: twin run "
+                f"SCENARIO --fidelity {spec.fidelity} --seed {spec.seed}"
+            ) from exc
         predictions, final = predictions_from_log(read_log(f"{tmp}/log.mcap").messages)
     rows = trial_rows(spec, results, predictions, final)
     return TrialResult(spec, tuple(rows), time.perf_counter() - t0)

@@ -139,3 +139,29 @@ def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main([*base[:2], "--trials", "0"])
     assert not (tmp_path / "mc").exists()
+
+
+def test_a_trial_that_raises_is_named_and_the_finished_ones_are_kept(tmp_path, monkeypatch, capsys):
+    import twin.runner
+    from twin.cli import main
+    from twin.montecarlo.seeds import trial_seed
+
+    real = twin.runner.run_scenario
+
+    def second_fails(scenario, out_dir, **kwargs):
+        if kwargs["seed"] == trial_seed(5, 1):
+            raise ValueError("the children coincide")
+        return real(scenario, out_dir, **kwargs)
+
+    monkeypatch.setattr(twin.runner, "run_scenario", second_fails)
+    out = tmp_path / "mc"
+    args = ["montecarlo", str(SMOKE), "--trials", "3", "--seed", "5", "--no-budget"]
+    assert main([*args, "--out", str(out)]) == 1
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"trial 1 of 'all' (seed {trial_seed(5, 1)}) failed: ValueError: the children" in said
+    assert f"twin run SCENARIO --fidelity geometric --seed {trial_seed(5, 1)}" in said
+    assert "--resume continues" in said
+    # Trial 0 ran before the failure and stays in the table for --resume.
+    lines = (out / TABLE).read_text().splitlines()
+    assert len(lines) == 2
+    assert lines[1].startswith("all,0,")
