@@ -12,6 +12,7 @@ resolution. Random draws happen in that order (tilt reading, then measurement no
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,6 +97,7 @@ def simulate_shot(
     inclinometer: InclinometerSpec | None = None,
     line_of_sight: LineOfSight | None = None,
     timestamp: float = 0.0,
+    measurement_rng: Callable[[int], np.random.Generator] | None = None,
 ) -> SimulatedShot:
     """Simulate one shot of the total station at a predicted prism position.
 
@@ -110,6 +112,9 @@ def simulate_shot(
             compensation (the instrument frame is then assumed level: no tilt reading).
         line_of_sight: visibility callback ``(prism_index, position_I) -> bool``.
         timestamp: time of the shot, s.
+        measurement_rng: gives the generator of the measurement noise from the index of
+            the prism locked (default ``rng``, which also draws the tilt reading): keyed
+            noise, the same for the same prism whatever was drawn before.
 
     Returns:
         The measurement and the index of the prism actually locked.
@@ -130,6 +135,7 @@ def simulate_shot(
         readings = np.zeros(2)
         pointing = aim
     index = auto_aim(prisms, pointing, spec, line_of_sight)
-    polar = _measure_with_readings(prisms[index], readings, spec, rng)
+    noise = rng if measurement_rng is None else measurement_rng(index)
+    polar = _measure_with_readings(prisms[index], readings, spec, noise)
     measurement = TotalStationMeasurement.from_polar(polar, float(timestamp), tilt=reading)
     return SimulatedShot(measurement=measurement, prism_index=index)

@@ -14,6 +14,7 @@ from twin.sim.rig.base import GeometricBase, RenderBase
 from twin.sim.rig.clock import SimClock
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
+from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.rig.total_station import SimTotalStation
 from twin.sim.scene import World
 from twin.timing import timed
@@ -64,7 +65,9 @@ def build_sim_rig(
         fidelity: ``render`` or ``geometric``.
         seed: root of the rig's random streams (default the scenario's seed). The instrument,
             each robot's stopping error, the LED detection and the injected faults have
-            their own streams, so switching one off changes nothing else.
+            their own streams, so switching one off changes nothing else; the instrument's
+            measurement noise is keyed to what each shot measures (:mod:`.shot_noise`), so
+            that runs at both fidelities with one seed share it.
         advertised: the noise the instrument reports to the campaign (default: the
             scenario's, which it simulates).
     """
@@ -104,6 +107,7 @@ def build_sim_rig(
         advertised=None
         if advertised is None
         else (advertised.total_station.spec(), advertised.inclinometer.spec()),
+        shot_noise=ShotNoise(root, len(sc.robots.children)),
     )
     bases: dict[str, MobileBase] = {}
     for name in names:

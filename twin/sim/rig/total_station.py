@@ -12,6 +12,7 @@ from twin.instruments.errors import NoPrismInConeError
 from twin.instruments.shot import simulate_shot
 from twin.instruments.tilt import read_inclinometer, tilt_from_orientation
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.robots import N_CUBES
 from twin.sim.scene import World
 
@@ -37,6 +38,8 @@ class SimTotalStation(TotalStation):
             :attr:`inclinometer`), by which the campaign weighs its shots; default ``spec``
             and ``inclinometer``. An error budget simulates one noise source alone while
             the instrument still advertises them all.
+        shot_noise: keyed measurement noise (:mod:`.shot_noise`); default: drawn from
+            ``rng`` in turn.
     """
 
     def __init__(
@@ -51,6 +54,7 @@ class SimTotalStation(TotalStation):
         lost_lock_rate: float = 0.0,
         fault_rng: np.random.Generator | None = None,
         advertised: tuple[TotalStationSpec, InclinometerSpec] | None = None,
+        shot_noise: ShotNoise | None = None,
     ) -> None:
         self.world = world
         self.parent = parent
@@ -64,6 +68,7 @@ class SimTotalStation(TotalStation):
         self.children = [c.name for c in world.scenario.robots.children]
         self._tilt: tuple[bytes, tuple[float, float]] = (b"", (0.0, 0.0))
         self._advertised = advertised or (spec, inclinometer)
+        self.shot_noise = shot_noise
 
     @property
     def spec(self) -> TotalStationSpec:
@@ -104,6 +109,19 @@ class SimTotalStation(TotalStation):
                 position, prisms_world[index], self.parent, tolerance=PRISM_TOLERANCE
             )
 
+        keyed = None
+        if self.shot_noise is not None:
+            noise = self.shot_noise
+
+            def keyed(index: int) -> np.random.Generator:
+                child = index // N_CUBES
+                return noise.generator(
+                    self.world.robot_pose(self.parent)[:2],
+                    child,
+                    self.world.robot_pose(self.children[child])[:2],
+                    index % N_CUBES,
+                )
+
         shot = simulate_shot(
             prisms,
             self._aim,
@@ -113,6 +131,7 @@ class SimTotalStation(TotalStation):
             inclinometer=self._inclinometer,
             line_of_sight=clear,
             timestamp=now,
+            measurement_rng=keyed,
         )
         self.last_prism = (self.children[shot.prism_index // N_CUBES], shot.prism_index % N_CUBES)
         return shot.measurement
