@@ -1,0 +1,100 @@
+"""Comparing the camera position errors of two Monte-Carlo tables (e.g. two fidelities).
+
+The errors of one trial's calibrations are correlated (they share the parent's track), so
+the resampling unit is the trial: the bootstrap draws whole trials with replacement, and
+the spread of "a handful of seeds" is that of the medians of two disjoint batches of
+trials drawn from one table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin.montecarlo.sources import ALL
+
+
+def errors_by_trial(rows: Sequence[dict[str, Any]], config: str = ALL) -> list[np.ndarray]:
+    """Each trial's camera position errors, mm, of its calibrated visits (trials in order)."""
+    by: dict[int, list[float]] = {}
+    for r in rows:
+        if r["config"] == config and r["calibrated"] and np.isfinite(r["position_error_mm"]):
+            by.setdefault(int(r["trial"]), []).append(float(r["position_error_mm"]))
+    return [np.array(by[t]) for t in sorted(by)]
+
+
+def _median(trials: Sequence[np.ndarray]) -> float:
+    return float(np.median(np.concatenate(trials)))
+
+
+@dataclass(frozen=True)
+class MedianRatio:
+    """The ratio of two tables' pooled median errors, with a bootstrap interval.
+
+    Attributes:
+        median_a, median_b: pooled medians, mm. ratio: median_b / median_a.
+        low, high: the bootstrap interval of the ratio (``level``, percentile method).
+        trials_a, trials_b: trials with at least one calibration.
+    """
+
+    median_a: float
+    median_b: float
+    ratio: float
+    low: float
+    high: float
+    level: float
+    trials_a: int
+    trials_b: int
+
+
+def median_ratio(
+    a: Sequence[np.ndarray],
+    b: Sequence[np.ndarray],
+    resamples: int = 4000,
+    level: float = 0.95,
+    seed: int = 0,
+) -> MedianRatio:
+    """Ratio of pooled medians, b over a, with a trial-level bootstrap interval.
+
+    Args:
+        a, b: per-trial error arrays (:func:`errors_by_trial`), at least two trials each.
+        resamples: bootstrap resamples. level: the interval's coverage. seed: its RNG.
+    """
+    if len(a) < 2 or len(b) < 2:
+        raise ValueError(f"need at least two trials in each table, got {len(a)} and {len(b)}")
+    rng = np.random.default_rng(seed)
+    ratios = np.empty(resamples)
+    for i in range(resamples):
+        ia = rng.integers(0, len(a), len(a))
+        ib = rng.integers(0, len(b), len(b))
+        ratios[i] = _median([b[j] for j in ib]) / _median([a[j] for j in ia])
+    tail = 0.5 * (1.0 - level)
+    low, high = np.quantile(ratios, [tail, 1.0 - tail])
+    ma, mb = _median(a), _median(b)
+    return MedianRatio(ma, mb, mb / ma, float(low), float(high), level, len(a), len(b))
+
+
+def batch_disagreement(
+    trials: Sequence[np.ndarray], batch: int, factor: float, draws: int = 4000, seed: int = 0
+) -> tuple[float, tuple[float, float]]:
+    """How often two disjoint batches of ``batch`` trials from one table have medians more
+    than ``factor`` apart, and the 95 % range of their ratio.
+
+    This is the chance that a comparison of two *identical* error distributions over
+    ``batch`` seeds each fails a ``factor`` band.
+    """
+    if 2 * batch > len(trials):
+        raise ValueError(f"two batches of {batch} need {2 * batch} trials, got {len(trials)}")
+    rng = np.random.default_rng(seed)
+    ratios = np.empty(draws)
+    for i in range(draws):
+        order = rng.permutation(len(trials))
+        first = [trials[j] for j in order[:batch]]
+        second = [trials[j] for j in order[batch : 2 * batch]]
+        ratios[i] = _median(first) / _median(second)
+    outside = float(np.mean((ratios > factor) | (ratios < 1.0 / factor)))
+    lo, hi = np.quantile(ratios, [0.025, 0.975])
+    return outside, (float(lo), float(hi))
