@@ -414,11 +414,11 @@ class Campaign:
                 o = self._measure(child, guess)
                 if o is None:
                     continue
-                twin = next((p for p in obs if same_marker(p.point_level, o.point_level)), None)
-                if twin is not None:
+                seen = next((p for p in obs if same_marker(p.point_level, o.point_level)), None)
+                if seen is not None:
                     self._fail(
                         "wrong_child",
-                        f"{child}'s shots found {twin.child}'s marker again",
+                        f"{child}'s shots found {seen.child}'s marker again",
                         robot=child,
                         attempt=attempt,
                     )

@@ -109,19 +109,6 @@ class SimTotalStation(TotalStation):
                 position, prisms_world[index], self.parent, tolerance=PRISM_TOLERANCE
             )
 
-        keyed = None
-        if self.shot_noise is not None:
-            noise = self.shot_noise
-
-            def keyed(index: int) -> np.random.Generator:
-                child = index // N_CUBES
-                return noise.generator(
-                    self.world.robot_pose(self.parent)[:2],
-                    child,
-                    self.world.robot_pose(self.children[child])[:2],
-                    index % N_CUBES,
-                )
-
         shot = simulate_shot(
             prisms,
             self._aim,
@@ -131,10 +118,21 @@ class SimTotalStation(TotalStation):
             inclinometer=self._inclinometer,
             line_of_sight=clear,
             timestamp=now,
-            measurement_rng=keyed,
+            measurement_rng=None if self.shot_noise is None else self._keyed_noise,
         )
         self.last_prism = (self.children[shot.prism_index // N_CUBES], shot.prism_index % N_CUBES)
         return shot.measurement
+
+    def _keyed_noise(self, index: int) -> np.random.Generator:
+        """The measurement noise's generator for a shot that locked prism ``index``."""
+        assert self.shot_noise is not None
+        child = index // N_CUBES
+        return self.shot_noise.generator(
+            self.world.robot_pose(self.parent)[:2],
+            child,
+            self.world.robot_pose(self.children[child])[:2],
+            index % N_CUBES,
+        )
 
     def read_inclination(self) -> TiltReading:
         _, _, tilt = self._true_state()
