@@ -41,9 +41,16 @@ LED_ON_EMISSION = 5.0
 COLLISION_DEBOUNCE_TICKS = 25
 
 NOSLIP_ITERATIONS = 2
-"""Iterations of MuJoCo's no-slip solver: without it soft contacts let a parked robot creep
-under a sustained sideways load (a wheel resting on the edge of a floor patch moved a
-child 1.8 cm in 30 s, and the parent's CPS fix failed its consistency test)."""
+"""Iterations of MuJoCo's no-slip solver: without it soft contacts let a parked robot slide
+under a sustained sideways load (a wheel resting on the edge of a floor patch)."""
+
+HOLD_GAIN = 10.0
+"""Gain of the wheels' position hold at rest, 1/s: a stopped robot's motor controller
+commands each wheel the speed ``-HOLD_GAIN * (angle - angle at rest)``, as the Pioneers'
+controllers hold their wheels at zero speed with an integral term. Without it the wheels
+of a parked robot roll freely against their speed servos' damping: a P3-DX child whose
+wheels rested on the 1.5 mm edge of a tilted floor patch rolled 12-20 mm off it in 30 s,
+enough for the parent's next CPS fix to fail its consistency test."""
 
 FELL_OVER_TILT = np.radians(30.0)
 """A robot whose body leans further than this from the vertical has fallen over, rad."""
@@ -203,6 +210,7 @@ class World:
                 pose=handle.pose(self.data),
             )
         self._wheels = {n: h.wheel_angles(self.data) for n, h in self.robots.items()}
+        self._held: dict[str, NDArray[np.float64]] = {}  # wheel angles held at rest, by robot
         self._controllers: dict[str, DriveController] = {}
         self._pose_source: dict[str, str] = {}
         self._last_contact: dict[tuple[str, int], int] = {}
@@ -265,6 +273,7 @@ class World:
             mujoco.mj_forward(self.model, self.data)
         self.odometry[robot].reset(h.pose(self.data))
         self._wheels[robot] = h.wheel_angles(self.data)
+        self._held.pop(robot, None)
 
     # -- lights ------------------------------------------------------------------------------
     @property
@@ -373,8 +382,19 @@ class World:
             v = _ramp(v0, vt, p.max_accel * dt * (1.0 + 1e-9))
             w = _ramp(w0, wt, p.max_yaw_accel * dt * (1.0 + 1e-9))
             self._command[name] = (v, w)
+            if v == 0.0 and w == 0.0 and vt == 0.0 and wt == 0.0:
+                self._hold(h)
+                continue
+            self._held.pop(name, None)
             half = 0.5 * p.command_track
             self._set_ctrl(h, (v - w * half) / p.wheel_radius, (v + w * half) / p.wheel_radius)
+
+    def _hold(self, h: RobotHandle) -> None:
+        """At rest: command each wheel back to the angle it had when the robot stopped."""
+        joints = list(h.left_qpos + h.right_qpos)
+        angles = self.data.qpos[joints]
+        held = self._held.setdefault(h.name, angles.copy())
+        self.data.ctrl[list(h.left_act + h.right_act)] = -HOLD_GAIN * (angles - held)
 
     def _set_ctrl(self, h: RobotHandle, left: float, right: float) -> None:
         for a in h.left_act:
