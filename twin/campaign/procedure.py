@@ -48,7 +48,7 @@ from twin.campaign.records import (
     Stage,
 )
 from twin.campaign.route import RoutePath
-from twin.campaign.shooting import measure_child, oriented_on, same_marker
+from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
 from twin.hal.devices import MobileBase
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
@@ -149,6 +149,7 @@ class Campaign:
         )
         self.outcome = CampaignOutcome()
         self.references: dict[str, tuple[NDArray, NDArray]] = {}
+        self._placed: dict[str, ChildObservation] = {}  # the measurement that placed each child
         self._fixes = 0
         self._stage = Progress("start")
         self._last_xy = np.zeros(2)
@@ -277,12 +278,39 @@ class Campaign:
     def _place_child(self, child: str) -> ChildObservation | None:
         """Measure a child that moved (the parent stands) and place it in the CPS state."""
         obs = self._measure(child)
-        if obs is None:
-            return None
+        if obs is not None:
+            self._put(child, obs)
+        return obs
+
+    def _put(self, child: str, obs: ChildObservation) -> None:
+        """Place a child measured from the standing parent in the CPS state."""
         with self._timed_solve():
             self.cps.children_moved([obs])
         self._fix_child_pose(child, obs, self.cps.parent)
-        return obs
+        self._placed[child] = obs
+
+    def _check_stayed(self, child: str, mover: str) -> None:
+        """Measure a placed child again after ``mover`` drove (the parent stands), as a
+        surveyor checks a backsight; place it anew if it moved.
+
+        A parked robot can be pushed, or roll off a ledge; if it moved unnoticed, the
+        parent's next fix would find the two children inconsistent with no way to tell
+        which one moved.
+        """
+        before = self._placed.get(child)
+        if before is None:
+            return
+        obs = self._measure(child)
+        if obs is None or not moved_between(before, obs, self.false_alarm_rate):
+            return
+        shift = float(np.linalg.norm(obs.point_level - before.point_level))
+        self._fail(
+            "child_moved",
+            f"{child} moved {1e3 * shift:.1f} mm while {mover} drove; placed again",
+            robot=child,
+            shift_m=shift,
+        )
+        self._put(child, obs)
 
     def _place_child_turning(self, child: str) -> ChildObservation | None:
         """:meth:`_place_child`; if a prism stays out of reach, the child turns on the spot
@@ -377,7 +405,8 @@ class Campaign:
         return sorted(s, key=lambda c: direction * s[c], reverse=True)
 
     def _move_children(self, stops: list[Stop], direction: float) -> None:
-        """Send the children to their formation stops (the far one first) and measure them."""
+        """Send the children to their formation stops (the far one first) and measure them;
+        then check that the ones placed first stayed while the others drove."""
         order = self._children_in_order(direction)
         s = {c: self.path.project(self._child_pose(c)[:2], near=self._s) for c in order}
         for child, stop in zip(order, stops, strict=True):
@@ -387,6 +416,8 @@ class Campaign:
                 self._fail("child_blocked", "the child stopped short of its stop", robot=child)
             if self._place_child_turning(child) is None:
                 raise CampaignAborted(f"the parent cannot measure {child}")
+        for child in order[:-1]:
+            self._check_stayed(child, order[-1])
 
     def _fix_parent(self) -> None:
         """The parent moved: measure the stationary children, solve its pose."""

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from twin.hal.devices import TotalStation
 from twin.hal.readings import TotalStationMeasurement
-from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE
+from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, chi2_statistic, chi2_threshold
 from twin.instruments.errors import (
     InconsistentMarkerError,
     InstrumentError,
@@ -171,6 +171,29 @@ def oriented_on(
         return guess
     turn = math.atan2(predicted[1], predicted[0]) - math.atan2(measured[1], measured[0])
     return ParentPose(float(wrap_angle(guess.yaw + turn)), guess.translation, guess.covariance)
+
+
+STILL_NOISE_FREE = 1e-6
+"""With a noise-free instrument (no consistency test), a child measured this far, m, from
+where it was measured before has moved."""
+
+
+def moved_between(
+    before: ChildObservation, after: ChildObservation, false_alarm_rate: float | None
+) -> bool:
+    """Whether a child moved between two measurements from one standing parent.
+
+    The parent did not move, so its pose error is common to both and cancels: the
+    difference of the two reference points has the covariance of the two measurements.
+    A robot is taken to have moved when its chi-square on 3 degrees of freedom exceeds the
+    quantile at ``false_alarm_rate`` (None: a noise-free instrument, any difference over
+    :data:`STILL_NOISE_FREE`).
+    """
+    difference = after.point_level - before.point_level
+    if false_alarm_rate is None:
+        return bool(np.linalg.norm(difference) > STILL_NOISE_FREE)
+    chi2 = chi2_statistic(difference, before.covariance + after.covariance)
+    return not chi2 <= chi2_threshold(3, false_alarm_rate)
 
 
 def same_marker(a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
