@@ -390,11 +390,14 @@ class World:
             self._set_ctrl(h, (v - w * half) / p.wheel_radius, (v + w * half) / p.wheel_radius)
 
     def _hold(self, h: RobotHandle) -> None:
-        """At rest: command each wheel back to the angle it had when the robot stopped."""
-        joints = list(h.left_qpos + h.right_qpos)
-        angles = self.data.qpos[joints]
-        held = self._held.setdefault(h.name, angles.copy())
-        self.data.ctrl[list(h.left_act + h.right_act)] = -HOLD_GAIN * (angles - held)
+        """At rest: command each side's wheels back to the mean angle the side had when the
+        robot stopped (one command per side, as the motor controller drives them: holding
+        the wheels of one side each to its own angle would set them against each other
+        through the floor, and a skid-steered robot would slowly turn)."""
+        angles = np.array(h.wheel_angles(self.data))
+        held = self._held.setdefault(h.name, angles)
+        left, right = -HOLD_GAIN * (angles - held)
+        self._set_ctrl(h, float(left), float(right))
 
     def _set_ctrl(self, h: RobotHandle, left: float, right: float) -> None:
         for a in h.left_act:
