@@ -46,11 +46,12 @@ under a sustained sideways load (a wheel resting on the edge of a floor patch)."
 
 HOLD_GAIN = 10.0
 """Gain of the wheels' position hold at rest, 1/s: a stopped robot's motor controller
-commands each wheel the speed ``-HOLD_GAIN * (angle - angle at rest)``, as the Pioneers'
-controllers hold their wheels at zero speed with an integral term. Without it the wheels
-of a parked robot roll freely against their speed servos' damping: a P3-DX child whose
-wheels rested on the 1.5 mm edge of a tilted floor patch rolled 12-20 mm off it in 30 s,
-enough for the parent's next CPS fix to fail its consistency test."""
+commands each side's wheels the speed ``-HOLD_GAIN * (side's mean angle - its angle at
+rest)``, as the Pioneers' controllers hold their wheels at zero speed with an integral
+term. Without it the wheels of a parked robot roll freely against their speed servos'
+damping: a P3-DX child whose wheels rested on the 1.5 mm edge of a tilted floor patch
+rolled 12-20 mm off it in 30 s, enough for the parent's next CPS fix to fail its
+consistency test."""
 
 FELL_OVER_TILT = np.radians(30.0)
 """A robot whose body leans further than this from the vertical has fallen over, rad."""
