@@ -1,0 +1,125 @@
+"""Stored results of the campaign, to show that a change of the code's shape leaves what
+it computes as it was.
+
+Each case is one run of a scenario (fidelity, seed, options); its ``results.json`` was
+stored with the versions of the libraries that computed it. Regenerate them only when a
+change of results is intended or a dependency upgrade changes them, and say which in the
+commit:
+
+    .venv/bin/python -m tests.twin.campaign.regression.cases
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import sys
+import tempfile
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[4]
+STORED = Path(__file__).resolve().parent / "stored"
+
+PACKAGES = ("numpy", "scipy", "mujoco", "opencv-python-headless", "pydantic")
+"""The libraries whose versions decide the results bit for bit."""
+
+
+@dataclass(frozen=True)
+class Case:
+    """One stored run: ``scenario`` (path from the repository's root), ``fidelity``,
+    ``seed``, ``noise`` (False: every noise source off), ``faults`` (the scenario's
+    ``[faults]`` replaced, as in the campaign's fault test)."""
+
+    name: str
+    scenario: str
+    fidelity: str
+    seed: int
+    noise: bool = True
+    faults: bool = False
+
+
+CASES = (
+    Case("smoke_geometric_1", "scenarios/smoke.toml", "geometric", 1),
+    Case("smoke_geometric_2", "scenarios/smoke.toml", "geometric", 2),
+    Case("smoke_geometric_3", "scenarios/smoke.toml", "geometric", 3),
+    Case("smoke_geometric_faults_4", "scenarios/smoke.toml", "geometric", 4, faults=True),
+    Case("hall_geometric_1", "scenarios/paper_hall.toml", "geometric", 1),
+    Case("hall_geometric_32", "scenarios/paper_hall.toml", "geometric", 32),
+    Case("hall_geometric_exact", "scenarios/paper_hall.toml", "geometric", 1, noise=False),
+    Case("corridor_geometric_6", "scenarios/corridor.toml", "geometric", 6),
+    Case("smoke_render_1", "scenarios/smoke.toml", "render", 1),
+)
+
+
+def environment() -> dict[str, str]:
+    """What the stored results depend on besides the code: Python, the libraries, the
+    machine's architecture."""
+    env = {"python": platform.python_version(), "machine": platform.machine()}
+    for name in PACKAGES:
+        env[name] = metadata.version(name)
+    return env
+
+
+def scenario_of(case: Case):
+    """The case's scenario, with its faults where the case asks for them."""
+    from twin.scenario import load_scenario
+
+    sc = load_scenario(ROOT / case.scenario)
+    if not case.faults:
+        return sc
+    faults = {"lost_lock_rate": 0.1, "hidden_led_rate": 0.05, "unreachable": ((3.0, 0.0),)}
+    return sc.model_copy(
+        update={
+            "faults": sc.faults.model_copy(update=faults),
+            "route": sc.route.model_copy(update={"waypoints": ((0.0, 0.0), (4.0, 0.0))}),
+            "calibration": sc.calibration.model_copy(
+                update={
+                    "visits": (
+                        sc.calibration.visits[0],
+                        sc.calibration.visits[0].model_copy(update={"station": (3.0, 0.0)}),
+                    )
+                }
+            ),
+        }
+    )
+
+
+def run_case(case: Case, out_dir: Path) -> dict[str, Any]:
+    """The case's results as ``results.json`` holds them (JSON types)."""
+    from twin.runner import run_scenario
+
+    results = run_scenario(
+        scenario_of(case),
+        out_dir,
+        fidelity=case.fidelity,
+        seed=case.seed,
+        noise=case.noise,
+        report=False,
+    )
+    return json.loads(json.dumps(results, allow_nan=False))
+
+
+def stored(case: Case) -> dict[str, Any]:
+    """The stored record of a case: ``environment`` and ``results``."""
+    return json.loads((STORED / f"{case.name}.json").read_text(encoding="utf-8"))
+
+
+def main(names: list[str]) -> None:
+    """Run the cases (all, or those named) and store their results."""
+    STORED.mkdir(exist_ok=True)
+    for case in CASES:
+        if names and case.name not in names:
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            results = run_case(case, Path(tmp))
+        record = {"case": case.__dict__, "environment": environment(), "results": results}
+        path = STORED / f"{case.name}.json"
+        path.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        print(f"{case.name}: {len(results['calibrations'])} calibrations -> {path}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
