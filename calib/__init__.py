@@ -16,7 +16,7 @@ from calib.detection import (
 )
 from calib.metrics import Metrics, evaluate
 from calib.opencv_calibration import calibrate_opencv
-from calib.opencv_camera import OpenCVCamera, tsai_to_opencv
+from calib.opencv_camera import OpenCVCamera, tsai2opencv
 from calib.paper_units import PaperParameters, from_paper_units, to_paper_units
 from calib.result import CalibrationResult
 from calib.tsai import calibrate_exterior, calibrate_tsai, predicted_covariance
@@ -42,5 +42,5 @@ __all__ = [
     "predicted_covariance",
     "project_tsai",
     "to_paper_units",
-    "tsai_to_opencv",
+    "tsai2opencv",
 ]

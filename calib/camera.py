@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from calib.checks import check_image_size, check_pixels, check_points_3d
 from calib.distortion import distort, undistort
-from calib.rotation import euler_to_matrix, look_at_world2cam, matrix_to_euler
+from calib.rotation import euler2matrix, look_at_world2cam, matrix2euler
 
 
 def project_tsai(
@@ -115,7 +115,7 @@ class TsaiCamera:
         if (rotation_rad is None) == (view_direction is None):
             raise ValueError("give exactly one of rotation_rad and view_direction")
         if rotation_rad is not None:
-            r = euler_to_matrix(rotation_rad)
+            r = euler2matrix(rotation_rad)
         else:
             r = look_at_world2cam(view_direction)
         c = np.asarray(position, dtype=float).reshape(3)
@@ -134,7 +134,7 @@ class TsaiCamera:
     @property
     def rotation_rad(self) -> NDArray[np.float64]:
         """(3,) Tsai angles (rx, ry, rz) about the world axes, rad; R = Rz Ry Rx."""
-        return matrix_to_euler(self.world2cam_r)
+        return matrix2euler(self.world2cam_r)
 
     @property
     def optical_axis(self) -> NDArray[np.float64]:

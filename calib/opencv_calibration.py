@@ -23,7 +23,7 @@ from calib.checks import (
 from calib.covariance import central_jacobian
 from calib.opencv_camera import DIST_NAMES, OpenCVCamera
 from calib.result import CalibrationResult, result_from_fit
-from calib.rotation import matrix_to_euler, matrix_to_rotvec, rotvec_to_matrix
+from calib.rotation import matrix2euler, matrix2rotvec, rotvec2matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
 
 
@@ -99,7 +99,7 @@ def calibrate_opencv(
         dd = np.zeros(5)
         dd[free] = q[4 : 4 + len(free)]
         kk = np.array([[q[0], 0, q[2]], [0, q[1], q[3]], [0, 0, 1.0]])
-        rr = rotvec_to_matrix(q[-6:-3])
+        rr = rotvec2matrix(q[-6:-3])
         return OpenCVCamera(kk, dd, rr, -rr @ q[-3:], size)
 
     uv_flat = uv.ravel()
@@ -108,7 +108,7 @@ def calibrate_opencv(
         return camera_of(q).project(p3).ravel() - uv_flat
 
     q0 = np.concatenate(
-        [[k[0, 0], k[1, 1], k[0, 2], k[1, 2]], d5[free], matrix_to_rotvec(r), -r.T @ t]
+        [[k[0, 0], k[1, 1], k[0, 2], k[1, 2]], d5[free], matrix2rotvec(r), -r.T @ t]
     )
     steps = np.concatenate(
         [[1e-3, 1e-3, 1e-3, 1e-3], np.full(len(free), 1e-6), [1e-6] * 3, [1e-5] * 3]
@@ -127,7 +127,7 @@ def calibrate_opencv(
     cam = camera_of(q)
 
     def reported(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        euler = matrix_to_euler(rotvec_to_matrix(x[-6:-3]))
+        euler = matrix2euler(rotvec2matrix(x[-6:-3]))
         return np.concatenate([x[:-6], euler, x[-3:]])
 
     names = (

@@ -2,7 +2,7 @@
 
 OpenCV distorts *undistorted* normalised coordinates (k1, k2, p1, p2, k3[, k4, k5, k6]);
 Tsai undistorts *distorted* ones. The two models are not exactly equivalent, so
-:func:`tsai_to_opencv` fits OpenCV coefficients that reproduce a Tsai camera over the whole
+:func:`tsai2opencv` fits OpenCV coefficients that reproduce a Tsai camera over the whole
 image and reports the largest disagreement.
 """
 
@@ -158,7 +158,7 @@ def _opencv_radial(xy: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[n
     return xy * num / den
 
 
-def tsai_to_opencv(camera: TsaiCamera, *, tolerance_px: float = 0.01) -> OpenCVConversion:
+def tsai2opencv(camera: TsaiCamera, *, tolerance_px: float = 0.01) -> OpenCVConversion:
     """Fit OpenCV coefficients that reproduce a Tsai camera over the whole image.
 
     K takes fx = sx f, fy = f and the same image centre. The radial coefficients k1, k2, k3

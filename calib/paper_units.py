@@ -44,13 +44,13 @@ def _check_pitch(pixel_size_mm: float) -> None:
         raise ValueError(f"pixel_size_mm must be a positive number, got {pixel_size_mm}")
 
 
-def kappa1_px_to_mm(kappa1_px: float, pixel_size_mm: float) -> float:
+def kappa1_px2mm(kappa1_px: float, pixel_size_mm: float) -> float:
     """kappa1 in 1/px^2 -> 1/mm^2 on a sensor with the given pixel pitch (mm)."""
     _check_pitch(pixel_size_mm)
     return kappa1_px / pixel_size_mm**2
 
 
-def kappa1_mm_to_px(kappa1_mm: float, pixel_size_mm: float) -> float:
+def kappa1_mm2px(kappa1_mm: float, pixel_size_mm: float) -> float:
     """kappa1 in 1/mm^2 -> 1/px^2 on a sensor with the given pixel pitch (mm)."""
     _check_pitch(pixel_size_mm)
     return kappa1_mm * pixel_size_mm**2
@@ -62,7 +62,7 @@ def to_paper_units(camera: TsaiCamera, pixel_size_mm: float) -> PaperParameters:
         f_px=camera.f,
         cx=camera.cx,
         cy=camera.cy,
-        kappa1_per_mm2=kappa1_px_to_mm(camera.kappa1, pixel_size_mm),
+        kappa1_per_mm2=kappa1_px2mm(camera.kappa1, pixel_size_mm),
         position_mm=tuple((camera.position * 1e3).tolist()),
         rotation_deg=tuple(np.degrees(camera.rotation_rad).tolist()),
         sx=camera.sx,
@@ -78,7 +78,7 @@ def from_paper_units(
         f=params.f_px,
         cx=params.cx,
         cy=params.cy,
-        kappa1=kappa1_mm_to_px(params.kappa1_per_mm2, params.pixel_size_mm),
+        kappa1=kappa1_mm2px(params.kappa1_per_mm2, params.pixel_size_mm),
         sx=params.sx,
         position=np.asarray(params.position_mm, dtype=float) / 1e3,
         rotation_rad=np.radians(params.rotation_deg),

@@ -1,4 +1,11 @@
-"""Rotation helpers built on :mod:`scipy.spatial.transform`.
+"""Rotations and angles: the one home of the project's rotation helpers (the camera model,
+the instruments, positioning and the simulator all use these), built on
+:mod:`scipy.spatial.transform` where it serves.
+
+- :func:`skew`, :func:`rot_z`, :func:`rot_z_derivative`, :func:`wrap_angle`: small
+  helpers over arrays of any leading shape.
+- Conversions between representations follow the ``a2b`` pattern: :func:`euler2matrix`,
+  :func:`matrix2euler`, :func:`rotvec2matrix`, :func:`matrix2rotvec`.
 
 Tsai's convention (and the paper's Table II) gives the world-to-camera rotation as angles
 (rx, ry, rz) about the fixed world axes X, Y, Z applied in that order:
@@ -10,6 +17,8 @@ which is scipy's extrinsic ``"xyz"`` sequence.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -17,23 +26,62 @@ from scipy.spatial.transform import Rotation
 EULER_SEQ = "xyz"
 
 
-def euler_to_matrix(angles_rad: ArrayLike) -> NDArray[np.float64]:
+def euler2matrix(angles_rad: ArrayLike) -> NDArray[np.float64]:
     """(3,) angles about X, Y, Z in radians -> (3, 3) rotation Rz @ Ry @ Rx."""
     return Rotation.from_euler(EULER_SEQ, np.asarray(angles_rad, dtype=float)).as_matrix()
 
 
-def matrix_to_euler(rotation: ArrayLike) -> NDArray[np.float64]:
+def matrix2euler(rotation: ArrayLike) -> NDArray[np.float64]:
     """(3, 3) rotation -> (3,) angles about X, Y, Z in radians, each in (-pi, pi]."""
     return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_euler(EULER_SEQ)
 
 
 def skew(v: ArrayLike) -> NDArray[np.float64]:
-    """(3,) vector -> (3, 3) cross-product matrix [v]x, so that skew(a) @ b = a x b."""
-    x, y, z = np.asarray(v, dtype=float)
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    """(..., 3) vectors -> (..., 3, 3) cross-product matrices [v]x, so that
+    ``skew(a) @ b = a x b``."""
+    a = np.asarray(v, dtype=float)
+    if a.shape[-1:] != (3,):
+        raise ValueError(f"skew takes (..., 3) vectors, got shape {a.shape}")
+    x, y, z = a[..., 0], a[..., 1], a[..., 2]
+    out = np.zeros((*a.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -z, y
+    out[..., 1, 0], out[..., 1, 2] = z, -x
+    out[..., 2, 0], out[..., 2, 1] = -y, x
+    return out
 
 
-def rotvec_to_matrix(rotvec: ArrayLike) -> NDArray[np.float64]:
+def rot_z(yaw: ArrayLike) -> NDArray[np.float64]:
+    """Rotation about z by (...,) angles, rad -> (..., 3, 3)."""
+    a = np.asarray(yaw, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    if a.ndim == 0:
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    zero, one = np.zeros_like(c), np.ones_like(c)
+    rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def rot_z_derivative(yaw: ArrayLike) -> NDArray[np.float64]:
+    """d Rz / d yaw at (...,) angles -> (..., 3, 3)."""
+    a = np.asarray(yaw, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    if a.ndim == 0:
+        return np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
+    zero = np.zeros_like(c)
+    rows = [[-s, -c, zero], [c, -s, zero], [zero, zero, zero]]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def wrap_angle(angle: ArrayLike) -> NDArray[np.float64] | float:
+    """Angles, rad, wrapped to [-pi, pi): a float for a float, else an array of the
+    input's shape (the same values either way: Python's ``%`` and ``np.mod`` round alike).
+    """
+    if isinstance(angle, float):
+        return (angle + math.pi) % (2.0 * math.pi) - math.pi
+    return np.mod(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
+
+
+def rotvec2matrix(rotvec: ArrayLike) -> NDArray[np.float64]:
     """(3,) rotation vector, rad -> (3, 3) rotation matrix (Rodrigues' formula)."""
     w = np.asarray(rotvec, dtype=float)
     theta2 = float(w @ w)
@@ -65,7 +113,7 @@ def right_jacobian(rotvec: ArrayLike) -> NDArray[np.float64]:
     return np.eye(3) - a * k + b * (k @ k)
 
 
-def matrix_to_rotvec(rotation: ArrayLike) -> NDArray[np.float64]:
+def matrix2rotvec(rotation: ArrayLike) -> NDArray[np.float64]:
     """(3, 3) rotation matrix -> (3,) rotation vector, rad."""
     return Rotation.from_matrix(np.asarray(rotation, dtype=float)).as_rotvec()
 

@@ -32,7 +32,7 @@ from calib.covariance import (
     unit_covariance,
 )
 from calib.result import CalibrationResult, result_from_fit
-from calib.rotation import matrix_to_euler, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
+from calib.rotation import matrix2euler, matrix2rotvec, right_jacobian, rotvec2matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
 
 TSAI_PARAMETERS = ("f_px", "cx", "cy", "sx", "kappa1_px", "rx", "ry", "rz", "x", "y", "z")
@@ -50,12 +50,12 @@ def _kappa_scale(image_size: tuple[int, int]) -> float:
 def _pack(cam: TsaiCamera) -> NDArray[np.float64]:
     """Camera -> internal parameters [f, cx, cy, sx, kappa1*r_ref^2, rotvec(3), C(3)]."""
     k = cam.kappa1 * _kappa_scale(cam.image_size)
-    rv = matrix_to_rotvec(cam.world2cam_r)
+    rv = matrix2rotvec(cam.world2cam_r)
     return np.concatenate([[cam.f, cam.cx, cam.cy, cam.sx, k], rv, cam.position])
 
 
 def _unpack(q: NDArray[np.float64], image_size: tuple[int, int]) -> TsaiCamera:
-    r = rotvec_to_matrix(q[5:8])
+    r = rotvec2matrix(q[5:8])
     k = q[4] / _kappa_scale(image_size)
     return TsaiCamera(q[0], q[1], q[2], k, q[3], r, -r @ q[8:11], image_size)
 
@@ -63,13 +63,13 @@ def _unpack(q: NDArray[np.float64], image_size: tuple[int, int]) -> TsaiCamera:
 def _project_q(
     q: NDArray[np.float64], p3: NDArray[np.float64], kscale: float
 ) -> NDArray[np.float64]:
-    r = rotvec_to_matrix(q[5:8])
+    r = rotvec2matrix(q[5:8])
     return project_tsai(p3, q[0], q[1], q[2], q[3], q[4] / kscale, r, -r @ q[8:11])
 
 
 def _reported(q: NDArray[np.float64], kscale: float) -> NDArray[np.float64]:
     """Internal parameters -> reported [f, cx, cy, sx, kappa1, rx, ry, rz, x, y, z]."""
-    euler = matrix_to_euler(rotvec_to_matrix(q[5:8]))
+    euler = matrix2euler(rotvec2matrix(q[5:8]))
     return np.concatenate([q[:4], [q[4] / kscale], euler, q[8:11]])
 
 
@@ -85,7 +85,7 @@ def _pixel_jacobian(
     kscale = _kappa_scale(image_size)
 
     def jac_of(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = rotvec_to_matrix(q[5:8])
+        r = rotvec2matrix(q[5:8])
         _, j = project_tsai_jacobian(
             p3, q[0], q[3], q[4] / kscale, r, q[8:11], right_jacobian(q[5:8])
         )
@@ -255,12 +255,12 @@ def calibrate_exterior(
     if not ok:
         raise ValueError("PnP found no pose for these points; check the correspondences")
     r0 = cv2.Rodrigues(rvec)[0]
-    q0 = np.concatenate([matrix_to_rotvec(r0), -r0.T @ tvec.ravel()])
+    q0 = np.concatenate([matrix2rotvec(r0), -r0.T @ tvec.ravel()])
     f, cx, cy, sx, k1 = intrinsics.f, intrinsics.cx, intrinsics.cy, intrinsics.sx, intrinsics.kappa1
     uv_flat = uv.ravel()
 
     def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = rotvec_to_matrix(q[:3])
+        r = rotvec2matrix(q[:3])
         res = project_tsai(p3, f, cx, cy, sx, k1, r, -r @ q[3:]).ravel() - uv_flat
         return np.where(np.isfinite(res), res, 1e6)
 
@@ -271,11 +271,11 @@ def calibrate_exterior(
 
     sol = least_squares(residual, q0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     q = sol.x
-    r = rotvec_to_matrix(q[:3])
+    r = rotvec2matrix(q[:3])
     cam = intrinsics.with_(world2cam_r=r, world2cam_t=-r @ q[3:])
 
     def reported(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.concatenate([matrix_to_euler(rotvec_to_matrix(x[:3])), x[3:]])
+        return np.concatenate([matrix2euler(rotvec2matrix(x[:3])), x[3:]])
 
     return result_from_fit(
         "tsai-exterior", cam, EXTERIOR_PARAMETERS, q, jac(q), residual(q), reported, steps, p3, uv

@@ -8,7 +8,7 @@ The format follows the file name:
   ``distortion_coefficients`` and the world-to-camera pose.
 
 A Tsai camera written to an OpenCV or ROS file is first converted to OpenCV's model with
-:func:`calib.opencv_camera.tsai_to_opencv`; reading such a file gives an OpenCVCamera.
+:func:`calib.opencv_camera.tsai2opencv`; reading such a file gives an OpenCVCamera.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 import yaml
 
 from calib.camera import TsaiCamera
-from calib.opencv_camera import OpenCVCamera, tsai_to_opencv
+from calib.opencv_camera import OpenCVCamera, tsai2opencv
 
 Camera = TsaiCamera | OpenCVCamera
 
@@ -44,7 +44,7 @@ def camera_format(path: str | Path) -> str:
 def _as_opencv(camera: Camera) -> tuple[OpenCVCamera, float | None]:
     if isinstance(camera, OpenCVCamera):
         return camera, None
-    conv = tsai_to_opencv(camera)
+    conv = tsai2opencv(camera)
     return conv.camera, conv.max_error_px
 
 

@@ -90,7 +90,7 @@ def test_metrics_of_known_offsets(cam1, cam1_points) -> None:
 def test_analytic_jacobian_matches_finite_differences(paper_cam, kappa1) -> None:
     from calib.camera import project_tsai, project_tsai_jacobian
     from calib.covariance import central_jacobian
-    from calib.rotation import matrix_to_rotvec, right_jacobian, rotvec_to_matrix
+    from calib.rotation import matrix2rotvec, right_jacobian, rotvec2matrix
     from calib.synthetic import led_points
 
     cam = paper_cam.with_(kappa1=kappa1, sx=1.01)
@@ -98,18 +98,18 @@ def test_analytic_jacobian_matches_finite_differences(paper_cam, kappa1) -> None
     q = np.concatenate(
         [
             [cam.f, cam.cx, cam.cy, cam.sx, cam.kappa1],
-            matrix_to_rotvec(cam.world2cam_r),
+            matrix2rotvec(cam.world2cam_r),
             cam.position,
         ]
     )
 
     def pixels(x: np.ndarray) -> np.ndarray:
-        r = rotvec_to_matrix(x[5:8])
+        r = rotvec2matrix(x[5:8])
         return project_tsai(pts, x[0], x[1], x[2], x[3], x[4], r, -r @ x[8:11]).ravel()
 
     steps = np.array([1e-3, 1e-3, 1e-3, 1e-6, 1e-12, 1e-6, 1e-6, 1e-6, 1e-5, 1e-5, 1e-5])
     numeric = central_jacobian(pixels, q, steps)
-    r = rotvec_to_matrix(q[5:8])
+    r = rotvec2matrix(q[5:8])
     uv, jac = project_tsai_jacobian(pts, q[0], q[3], q[4], r, q[8:11], right_jacobian(q[5:8]))
     assert_allclose(uv + np.array([q[1], q[2]]), cam.project(pts), atol=1e-9)
     scale = np.abs(numeric).max(axis=0)

@@ -8,10 +8,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from calib import OpenCVCamera, TsaiCamera, from_paper_units, to_paper_units, tsai_to_opencv
+from calib import OpenCVCamera, TsaiCamera, from_paper_units, to_paper_units, tsai2opencv
 from calib.io import load_camera, save_camera
 from calib.opencv_camera import image_grid
-from calib.paper_units import PaperParameters, kappa1_mm_to_px, kappa1_px_to_mm
+from calib.paper_units import PaperParameters, kappa1_mm2px, kappa1_px2mm
 from calib.synthetic import paper_camera
 
 angles = st.tuples(st.floats(-179.0, 179.0), st.floats(-85.0, 85.0), st.floats(-179.0, 179.0))
@@ -40,12 +40,12 @@ def test_paper_units_round_trip(f, cx, cy, kappa_mm, pos, rot, sx, pitch) -> Non
 
 @given(k=st.floats(-1e-5, 1e-5), pitch=st.floats(1e-4, 0.1))
 def test_kappa_unit_conversion_round_trip(k: float, pitch: float) -> None:
-    assert kappa1_mm_to_px(kappa1_px_to_mm(k, pitch), pitch) == pytest.approx(k, rel=1e-12)
+    assert kappa1_mm2px(kappa1_px2mm(k, pitch), pitch) == pytest.approx(k, rel=1e-12)
 
 
 def test_kappa_conversion_rejects_bad_pitch() -> None:
     with pytest.raises(ValueError, match="pixel_size_mm must be a positive number, got 0"):
-        kappa1_px_to_mm(1e-7, 0)
+        kappa1_px2mm(1e-7, 0)
 
 
 def test_table_ii_camera_1_in_paper_units() -> None:
@@ -63,7 +63,7 @@ KAPPAS = [8.08e-8, 4.33e-7, 7.02e-7, -4.33e-7, -7.02e-7, 2.1e-6, -2.1e-6, 0.0]
 @pytest.mark.parametrize("kappa1", KAPPAS)
 def test_opencv_export_agrees_within_005_px(kappa1: float) -> None:
     cam = paper_camera(1, kappa1=kappa1, sx=1.01)
-    conv = tsai_to_opencv(cam)
+    conv = tsai2opencv(cam)
     grid = image_grid(cam.image_size, step=2.0)  # a denser grid than the fit used
     origins, dirs = cam.unproject(grid)
     pts = origins + 9.0 * dirs
@@ -75,7 +75,7 @@ def test_opencv_export_agrees_within_005_px(kappa1: float) -> None:
 @pytest.fixture
 def cameras() -> list:
     tsai = paper_camera(3, sx=1.004)
-    return [tsai, tsai_to_opencv(paper_camera(2)).camera]
+    return [tsai, tsai2opencv(paper_camera(2)).camera]
 
 
 def test_json_round_trip_is_exact(tmp_path, cameras) -> None:

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
+from calib.rotation import wrap_angle
 from twin.campaign.geometry import (
     body_points,
     child_profile,
@@ -170,7 +171,7 @@ def _formation_ok(
                 return False
             v = stop.xy - inst[:2]
             bearings.append(math.atan2(v[1], v[0]))
-        sep = abs((bearings[0] - bearings[1] + math.pi) % (2 * math.pi) - math.pi)
+        sep = abs(wrap_angle(bearings[0] - bearings[1]))
         if sep < MIN_SEPARATION:
             return False
     return True

@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 from calib.camera import TsaiCamera
 from calib.io.camera_files import camera_from_dict
 from calib.metrics import evaluate
-from calib.paper_units import kappa1_px_to_mm
+from calib.paper_units import kappa1_px2mm
 from twin.campaign.records import CALIBRATION, DATASET, FAILURE, PARENT_FIX, POINT, SKIPPED
 
 META = "/run/meta"
@@ -89,7 +89,7 @@ def _parameters(camera: Any, pixel_size_mm: float) -> dict[str, Any]:
             cy=camera.cy,
             sx=camera.sx,
             kappa1_px=camera.kappa1,
-            kappa1_per_mm2=kappa1_px_to_mm(camera.kappa1, pixel_size_mm),
+            kappa1_per_mm2=kappa1_px2mm(camera.kappa1, pixel_size_mm),
             rotation_deg=np.degrees(camera.rotation_rad).tolist(),
         )
     return out

@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.rotation import rot_z, wrap_angle
 from twin.hal.devices import TotalStation
 from twin.hal.readings import TotalStationMeasurement
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, chi2_statistic, chi2_threshold
@@ -27,7 +28,6 @@ from twin.instruments.errors import (
 )
 from twin.instruments.marker import MarkerAssembly
 from twin.localization.observation import ChildObservation, observe_child
-from twin.localization.planar import rot_z, wrap_angle
 from twin.localization.pose import ParentPose
 
 SWEEP_DEG = (2.0, -2.0, 4.0, -4.0, 6.0, -6.0)

@@ -16,7 +16,7 @@ from calib import CalibrationResult, calibrate_opencv, calibrate_tsai
 from calib.io import load_camera, read_points_csv, save_camera
 from calib.io.camera_files import camera_format
 from calib.io.points_csv import UNIT_SCALE
-from calib.paper_units import kappa1_px_to_mm
+from calib.paper_units import kappa1_px2mm
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -63,8 +63,8 @@ def result_to_dict(
         for key in ("f_px", "cx", "cy", "sx", "kappa1_px"):
             params[key], stds[key] = par[key], std[key]
         if pixel_size_mm:
-            params["kappa1_mm"] = kappa1_px_to_mm(par["kappa1_px"], pixel_size_mm)
-            stds["kappa1_mm"] = kappa1_px_to_mm(std["kappa1_px"], pixel_size_mm)
+            params["kappa1_mm"] = kappa1_px2mm(par["kappa1_px"], pixel_size_mm)
+            stds["kappa1_mm"] = kappa1_px2mm(std["kappa1_px"], pixel_size_mm)
     else:
         fx, fy = par["fx"], par["fy"]
         i, j = names.index("fx"), names.index("fy")

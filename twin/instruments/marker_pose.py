@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from twin.instruments.arrays import matrices
+from calib.rotation import skew
 from twin.instruments.consistency import NUMERICAL_FLOOR, chi2_statistic
 from twin.instruments.marker import MarkerAssembly
 
@@ -40,11 +40,6 @@ _SIDES = ((0, 1), (1, 2), (2, 0))
 _CENTROID = np.tile(np.eye(3), 3) / 3.0
 """(3, 9) the mean of three cubes as a linear map of their coordinates."""
 _CENTROID.setflags(write=False)
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    return matrices([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]], x.shape)
 
 
 def check_cubes(cubes: ArrayLike, name: str = "cubes") -> NDArray[np.float64]:
@@ -107,7 +102,7 @@ class MarkerPose:
         """(N, 3, 6) Jacobian of the mapped points with respect to (d_theta, d_t)."""
         rp = np.asarray(points_body, dtype=float) @ self.rotation.T
         n = rp.shape[0]
-        return np.concatenate([-_skew(rp), np.broadcast_to(np.eye(3), (n, 3, 3))], axis=-1)
+        return np.concatenate([-skew(rp), np.broadcast_to(np.eye(3), (n, 3, 3))], axis=-1)
 
 
 def fit_marker_pose(

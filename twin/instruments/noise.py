@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.instruments.polar import TWO_PI, polar_to_cartesian_jacobian
+from twin.instruments.polar import TWO_PI, polar2cartesian_jacobian
 from twin.instruments.tilt import tilt_covariance
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
@@ -103,7 +103,7 @@ def cartesian_covariance(
     at ``polar`` (pass the measured values: that is what a real system has).
     """
     p = np.asarray(polar, dtype=float)
-    jac = polar_to_cartesian_jacobian(p)
+    jac = polar2cartesian_jacobian(p)
     cov = jac @ polar_covariance(p, spec, quantisation=quantisation) @ np.swapaxes(jac, -1, -2)
     if inclinometer is not None:
         d, hz, v = p[..., 0], p[..., 1], p[..., 2]

@@ -35,7 +35,7 @@ def _as_triplets(values: ArrayLike, name: str) -> NDArray[np.float64]:
     return arr
 
 
-def polar_to_cartesian(polar: ArrayLike) -> NDArray[np.float64]:
+def polar2cartesian(polar: ArrayLike) -> NDArray[np.float64]:
     """(..., 3) polar (d m, hz rad, v rad) -> (..., 3) Cartesian points in the same frame, m."""
     p = _as_triplets(polar, "polar")
     d, hz, v = p[..., 0], p[..., 1], p[..., 2]
@@ -47,7 +47,7 @@ def polar_to_cartesian(polar: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def cartesian_to_polar(points: ArrayLike) -> NDArray[np.float64]:
+def cartesian2polar(points: ArrayLike) -> NDArray[np.float64]:
     """(..., 3) Cartesian points, m -> (..., 3) polar (d m, hz in [0, 2pi), v in [0, pi]).
 
     Raises ValueError for a point at the instrument centre (direction undefined).
@@ -65,7 +65,7 @@ def cartesian_to_polar(points: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def polar_to_cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:
+def polar2cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:
     """Jacobian d(x, y, z) / d(d, hz, v) at (..., 3) polar triplets -> (..., 3, 3).
 
     Rows are x, y, z (m); columns are d (m), hz (rad), v (rad).
@@ -81,7 +81,7 @@ def polar_to_cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:
     return matrices(rows, d.shape)
 
 
-def cartesian_to_polar_jacobian(points: ArrayLike) -> NDArray[np.float64]:
+def cartesian2polar_jacobian(points: ArrayLike) -> NDArray[np.float64]:
     """Jacobian d(d, hz, v) / d(x, y, z) at (..., 3) points -> (..., 3, 3).
 
     Undefined on the vertical through the instrument (hz is then arbitrary): raises
@@ -93,7 +93,7 @@ def cartesian_to_polar_jacobian(points: ArrayLike) -> NDArray[np.float64]:
             "the horizontal angle of a point on the instrument's vertical axis is "
             "undefined; its Jacobian does not exist"
         )
-    return np.linalg.inv(polar_to_cartesian_jacobian(cartesian_to_polar(p)))
+    return np.linalg.inv(polar2cartesian_jacobian(cartesian2polar(p)))
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ class TotalStationMeasurement:
 
     def to_cartesian(self) -> NDArray[np.float64]:
         """(3,) prism position in the levelled instrument frame, m."""
-        return polar_to_cartesian(self.polar)
+        return polar2cartesian(self.polar)
 
     @classmethod
     def from_polar(

@@ -22,8 +22,8 @@ from twin.instruments.aim import LineOfSight, auto_aim
 from twin.instruments.noise import add_polar_noise, quantise_polar
 from twin.instruments.polar import (
     TotalStationMeasurement,
-    cartesian_to_polar,
-    polar_to_cartesian,
+    cartesian2polar,
+    polar2cartesian,
 )
 from twin.instruments.tilt import (
     TiltReading,
@@ -54,9 +54,9 @@ def _measure_with_readings(
     spec: TotalStationSpec,
     rng: np.random.Generator,
 ) -> NDArray[np.float64]:
-    noisy = add_polar_noise(cartesian_to_polar(points_instrument), spec, rng)
-    levelled = level_points(polar_to_cartesian(noisy), readings[..., 0], readings[..., 1])
-    return quantise_polar(cartesian_to_polar(levelled), spec)
+    noisy = add_polar_noise(cartesian2polar(points_instrument), spec, rng)
+    levelled = level_points(polar2cartesian(noisy), readings[..., 0], readings[..., 1])
+    return quantise_polar(cartesian2polar(levelled), spec)
 
 
 def measure_points(

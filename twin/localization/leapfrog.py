@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.rotation import rot_z, wrap_angle
 from twin.instruments.consistency import (
     DEFAULT_FALSE_ALARM_RATE,
     check_false_alarm_rate,
@@ -49,12 +50,11 @@ from twin.instruments.errors import ConsistencyError, FailureReason, Inconsisten
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import MARKER_DOF, marker_consistency_chi2
 from twin.instruments.noise import cartesian_covariance
-from twin.instruments.polar import polar_to_cartesian
+from twin.instruments.polar import polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.tilt import tilt_rotation
 from twin.instruments.total_station import ARCSEC, InclinometerSpec, TotalStationSpec
 from twin.localization.observation import ChildObservation, reference_from_cubes
-from twin.localization.planar import rot_z, wrap_angle
 from twin.localization.sequence import CpsSequence
 
 CHILDREN = ("child1", "child2")
@@ -236,7 +236,7 @@ def simulate_leapfrog(
             config.inclinometer,
             rng,
         )
-        cubes = polar_to_cartesian(polar)
+        cubes = polar2cartesian(polar)
         point, cov = reference_from_cubes(cubes, polar, config.spec, config.inclinometer)
         cube_cov = cartesian_covariance(polar, config.spec, config.inclinometer)
         return point, cov, marker_consistency_chi2(cubes, cube_cov, config.marker)

@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from calib.rotation import rot_z
 from twin.localization.checks import PoorGeometryWarning, check_covariance
-from twin.localization.planar import level2world, rot_z
+from twin.localization.planar import level2world
 
 
 @dataclass(frozen=True, eq=False)

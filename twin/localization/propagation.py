@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.localization.planar import rot_z, rot_z_derivative
+from calib.rotation import rot_z, rot_z_derivative
 from twin.localization.pose import ParentPose
 
 
@@ -28,7 +28,7 @@ def level2world_jacobian(yaw: float, points_level: ArrayLike) -> NDArray[np.floa
     return jac
 
 
-def level_points_to_world(
+def level2world_with_covariance(
     pose: ParentPose, points_level: ArrayLike, cov_level: ArrayLike | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Map points measured in the parent's levelled frame to the world, with covariance.

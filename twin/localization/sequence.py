@@ -31,11 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.rotation import rot_z
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, check_false_alarm_rate
 from twin.localization.checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
 from twin.localization.closed_form import solve_closed_form
 from twin.localization.observation import ChildObservation
-from twin.localization.planar import rot_z
 from twin.localization.pose import CpsSolution, ParentPose
 from twin.localization.propagation import level2world_jacobian
 from twin.localization.wls import solve_wls

@@ -27,6 +27,7 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from calib.rotation import rot_z, rot_z_derivative, wrap_angle
 from twin.instruments.consistency import (
     DEFAULT_FALSE_ALARM_RATE,
     check_false_alarm_rate,
@@ -41,7 +42,6 @@ from twin.localization.checks import (
     check_cps_input,
     check_measurement_covariances,
 )
-from twin.localization.planar import rot_z, rot_z_derivative, wrap_angle
 from twin.localization.pose import CpsSolution, ParentPose, warn_if_poor
 
 

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator
 from calib.camera import TsaiCamera
 from calib.lens_coverage import lens_fold_problem
 from calib.opencv_camera import OpenCVCamera
+from calib.rotation import wrap_angle
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PLATFORMS, OdometrySpec, Platform
@@ -484,7 +485,7 @@ class Route(Frozen):
         p = np.asarray(self.waypoints, dtype=float)
         d = np.diff(p, axis=0)
         heading = np.arctan2(d[:, 1], d[:, 0])
-        turn = (np.diff(heading) + np.pi) % (2 * np.pi) - np.pi
+        turn = wrap_angle(np.diff(heading))
         return tuple(float(t) for t in np.degrees(turn))
 
 

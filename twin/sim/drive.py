@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
+from calib.rotation import wrap_angle
 from twin.scenario.robots import Platform
 
 
@@ -50,11 +51,6 @@ class DriveTolerance:
     heading: float = math.radians(0.5)
     turn_first: float = math.radians(15.0)
     slow_radius: float = 0.10
-
-
-def wrap(angle: float) -> float:
-    """Angle wrapped to [-pi, pi), rad."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class DriveController:
@@ -124,7 +120,7 @@ class DriveController:
                 self.phase = DrivePhase.TURN_TO_GOAL
                 w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
             else:
-                err = wrap(math.atan2(dy, dx) - yaw)
+                err = wrap_angle(math.atan2(dy, dx) - yaw)
                 if dist > self.tol.slow_radius and abs(err) > 2.0 * self.tol.turn_first:
                     self.phase = DrivePhase.TURN_TO_GOAL
                     w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
@@ -135,7 +131,7 @@ class DriveController:
                         w_t = max(-p.max_yaw_rate, min(p.max_yaw_rate, 2.0 * err))
         settled = False
         if self.phase is DrivePhase.TURN_TO_HEADING:
-            err = 0.0 if self.goal_yaw is None else wrap(self.goal_yaw - yaw)
+            err = 0.0 if self.goal_yaw is None else wrap_angle(self.goal_yaw - yaw)
             if abs(err) <= self.tol.heading:
                 settled = True
             elif self.v == 0.0:  # turn in place only once stopped, so as not to drift
@@ -156,11 +152,11 @@ class DriveController:
         Far from the goal the robot drives forwards. Inside ``slow_radius`` it may reverse
         instead, whichever needs the smaller turn (a goal a few cm behind is backed onto).
         """
-        err = wrap(math.atan2(dy, dx) - yaw)
+        err = wrap_angle(math.atan2(dy, dx) - yaw)
         self.direction = 1.0
         if dist < self.tol.slow_radius and abs(err) > 0.5 * math.pi:
             self.direction = -1.0
-            err = wrap(err - math.pi)
+            err = wrap_angle(err - math.pi)
         return err
 
     def _aim_tolerance(self, dist: float) -> float:

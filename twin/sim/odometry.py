@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.rotation import wrap_angle
 from twin.scenario.robots import OdometrySpec
 
 
@@ -77,11 +78,8 @@ class WheelOdometry:
             dth += self.spec.heading_noise * root * float(noise[1])
         x, y, th = self._pose
         mid = th + 0.5 * dth
-        self._pose = np.array([x + ds * np.cos(mid), y + ds * np.sin(mid), _wrap(th + dth)])
+        self._pose = np.array(
+            [x + ds * np.cos(mid), y + ds * np.sin(mid), float(wrap_angle(th + dth))]
+        )
         self.distance += abs(ds)
         return self._pose.copy()
-
-
-def _wrap(angle: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return float((angle + np.pi) % (2.0 * np.pi) - np.pi)

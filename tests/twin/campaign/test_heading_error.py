@@ -10,8 +10,8 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
+from calib.rotation import rot_z, wrap_angle
 from twin.campaign.shooting import MIN_ORIENTING_RANGE, oriented_on, same_marker
-from twin.localization.planar import rot_z, wrap_angle
 from twin.localization.pose import ParentPose
 from twin.report.results import planned_visits
 from twin.runner import run_scenario

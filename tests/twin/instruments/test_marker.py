@@ -15,7 +15,7 @@ from twin.instruments.marker_pose import (
     marker_consistency_chi2,
 )
 from twin.instruments.noise import cartesian_covariance
-from twin.instruments.polar import cartesian_to_polar, polar_to_cartesian
+from twin.instruments.polar import cartesian2polar, polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
@@ -73,7 +73,7 @@ def test_led_covariance_matches_monte_carlo():
     leds_true = MARKER.leds_body @ rot.T + t
     n = 3000
     polar, _ = measure_points(np.tile(cubes, (n, 1, 1)), 0.0, 0.0, spec, incl, rng)
-    measured = polar_to_cartesian(polar)
+    measured = polar2cartesian(polar)
     nees = np.empty(n)
     for i in range(n):
         pose = fit_marker_pose(measured[i], MARKER, cartesian_covariance(polar[i], spec, incl))
@@ -86,7 +86,7 @@ def test_led_covariance_matches_monte_carlo():
 
 def test_centroid_and_its_covariance():
     cubes = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
-    cov = cartesian_covariance(cartesian_to_polar(cubes), TotalStationSpec())
+    cov = cartesian_covariance(cartesian2polar(cubes), TotalStationSpec())
     point, point_cov = cube_centroid(cubes, cov)
     np.testing.assert_allclose(point, cubes.mean(axis=0))
     np.testing.assert_allclose(point_cov, cov.sum(axis=0) / 9, rtol=1e-12, atol=1e-18)
@@ -108,7 +108,7 @@ def test_fit_chi2_follows_chi_square_3_and_matches_the_side_lengths():
     offsets = np.stack([rng.uniform(6, 14, n), rng.uniform(-3, 3, n), np.full(n, -0.75)], -1)
     cubes = MARKER.cubes_body[None] + offsets[:, None, :]
     polar, _ = measure_points(cubes, 30e-6, -20e-6, spec, incl, rng)
-    measured = polar_to_cartesian(polar)
+    measured = polar2cartesian(polar)
     cov = cartesian_covariance(polar, spec, incl)
     fit = np.array([fit_marker_pose(m, MARKER, c).chi2 for m, c in zip(measured, cov, strict=True)])
     sides = marker_consistency_chi2(measured, cov, MARKER)

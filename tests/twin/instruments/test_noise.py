@@ -11,7 +11,7 @@ from twin.instruments.noise import (
     polar_covariance,
     quantise_polar,
 )
-from twin.instruments.polar import cartesian_to_polar, polar_to_cartesian
+from twin.instruments.polar import cartesian2polar, polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.total_station import ARCSEC, InclinometerSpec, TotalStationSpec
 
@@ -47,7 +47,7 @@ def test_simulated_shots_have_the_specified_spread_and_grid(distance):
     hz = rng.uniform(0, 2 * np.pi, N)
     v = rng.uniform(np.radians(60), np.radians(120), N)
     true = np.stack([np.full(N, distance), hz, v], axis=-1)
-    points = polar_to_cartesian(true)
+    points = polar2cartesian(true)
     exact_incl = InclinometerSpec(sigma=0.0)
     measured, _ = measure_points(points, 0.0, 0.0, SPEC, exact_incl, rng)
 
@@ -89,7 +89,7 @@ def test_normalise_keeps_the_point():
     norm = normalise_polar(raw)
     assert np.all((norm[:, 1] >= 0) & (norm[:, 1] < 2 * np.pi))
     assert np.all((norm[:, 2] >= 0) & (norm[:, 2] <= np.pi))
-    np.testing.assert_allclose(polar_to_cartesian(norm), polar_to_cartesian(raw), atol=1e-12)
+    np.testing.assert_allclose(polar2cartesian(norm), polar2cartesian(raw), atol=1e-12)
 
 
 def test_noise_is_reproducible_bit_for_bit():
@@ -116,9 +116,9 @@ def test_cartesian_covariance_matches_simulation():
 
     instrument = tilt_rotation(roll, pitch).T @ point
     measured, _ = measure_points(np.tile(instrument, (N, 1)), roll, pitch, SPEC, incl, rng)
-    xyz = polar_to_cartesian(measured)
+    xyz = polar2cartesian(measured)
     sample = np.cov(xyz.T)
-    predicted = cartesian_covariance(cartesian_to_polar(point), SPEC, incl)
+    predicted = cartesian_covariance(cartesian2polar(point), SPEC, incl)
     # Compare through the whitened sample covariance: identity within sampling error.
     lw = np.linalg.cholesky(np.linalg.inv(predicted))
     np.testing.assert_allclose(lw.T @ sample @ lw, np.eye(3), atol=0.06)

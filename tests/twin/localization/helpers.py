@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from twin.localization.planar import rot_z
+from calib.rotation import rot_z
 
 
 def measure_from(yaw, translation, points_world):

@@ -8,7 +8,7 @@ from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import fit_marker_pose, led_positions
 from twin.localization.planar import level2world, world2level
 from twin.localization.pose import ParentPose
-from twin.localization.propagation import level_points_to_world
+from twin.localization.propagation import level2world_with_covariance
 
 MARKER = MarkerAssembly()
 
@@ -16,14 +16,14 @@ MARKER = MarkerAssembly()
 def test_noise_free_mapping_is_paper_eq_1():
     pose = ParentPose(0.7, np.array([3.0, -1.0, 0.2]))
     pts = np.array([[5.0, 1.0, 0.4], [8.0, -2.0, 0.6]])
-    world, cov = level_points_to_world(pose, pts)
+    world, cov = level2world_with_covariance(pose, pts)
     np.testing.assert_allclose(world, level2world(pts, 0.7, [3.0, -1.0, 0.2]))
     np.testing.assert_allclose(world2level(world, 0.7, [3.0, -1.0, 0.2]), pts, atol=1e-12)
     assert np.all(cov == 0)
     with pytest.raises(ValueError, match="points_level"):
-        level_points_to_world(pose, [[np.nan, 0.0, 0.0]])
+        level2world_with_covariance(pose, [[np.nan, 0.0, 0.0]])
     with pytest.raises(ValueError, match="cov_level"):
-        level_points_to_world(pose, pts, np.eye(3))
+        level2world_with_covariance(pose, pts, np.eye(3))
 
 
 def test_led_world_covariance_includes_the_parent():
@@ -44,7 +44,7 @@ def test_led_world_covariance_includes_the_parent():
         v = true_pose.vector + lp @ rng.standard_normal(4)
         est = ParentPose(v[0], v[1:], p_cov)
         measured = cubes_level + sigma * rng.standard_normal((3, 3))
-        world, cov = level_points_to_world(est, measured, cov_level)
+        world, cov = level2world_with_covariance(est, measured, cov_level)
         assert cov.shape == (9, 9)
         leds, led_cov = led_positions(fit_marker_pose(world, MARKER, cov), MARKER)
         e = leds[0] - leds_true[0]

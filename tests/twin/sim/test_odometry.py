@@ -9,6 +9,7 @@ from functools import cache
 import numpy as np
 import pytest
 
+from calib.rotation import wrap_angle
 from twin.scenario import Scenario, scenario_from_dict
 from twin.sim.scene import build_world
 
@@ -23,10 +24,6 @@ def noiseless() -> Scenario:
     return scenario_from_dict(raw)
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 @pytest.mark.parametrize("robot", ["parent", "child1"])
 @pytest.mark.parametrize("turn_deg", [90.0, -90.0])
 def test_a_90_deg_turn_in_place_leaves_odometry_on_the_true_heading(robot, turn_deg):
@@ -34,9 +31,9 @@ def test_a_90_deg_turn_in_place_leaves_odometry_on_the_true_heading(robot, turn_
     start = world.robot_pose(robot)
     result = world.drive_to(robot, start[:2], goal_yaw=start[2] + math.radians(turn_deg))
     assert result.status == "reached", result
-    turned = _wrap(result.pose[2] - start[2])
+    turned = wrap_angle(result.pose[2] - start[2])
     assert turned == pytest.approx(math.radians(turn_deg), abs=math.radians(1.0))
-    error = _wrap(world.odometry[robot].pose[2] - result.pose[2])
+    error = wrap_angle(world.odometry[robot].pose[2] - result.pose[2])
     assert abs(error) < math.radians(1.5), math.degrees(error)
 
 
@@ -48,5 +45,5 @@ def test_odometry_follows_a_straight_line(robot):
     assert result.status == "reached", result
     odo = world.odometry[robot].pose
     assert np.linalg.norm(odo[:2] - result.pose[:2]) < 0.02  # 0.5 % of 4 m
-    assert abs(_wrap(odo[2] - result.pose[2])) < math.radians(0.2)
+    assert abs(wrap_angle(odo[2] - result.pose[2])) < math.radians(0.2)
     assert world.odometry[robot].distance == pytest.approx(4.0, abs=0.02)

@@ -12,9 +12,9 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from calib.rotation import wrap_angle
 from twin.hal.devices import Clock, MobileBase
 from twin.hal.readings import DriveResult, DriveStatus, OdometryReading
-from twin.localization.planar import wrap_angle
 from twin.scenario.geometry import inside_obstacle, inside_space
 from twin.scenario.schema import StoppingConfig
 from twin.sim.rig.frames import WorldFrame

@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from calib.camera import TsaiCamera
 from calib.opencv_camera import OpenCVCamera
-from twin.localization.planar import rot_z, wrap_angle
+from calib.rotation import rot_z, wrap_angle
 
 
 @dataclass(frozen=True)
