@@ -31,7 +31,7 @@ from calib.detection import SwitchingSequence, detect_leds
 from twin.scenario import load_scenario
 from twin.sim.capture import CameraSimulator
 from twin.sim.placement import stand_for_led
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 # Imported after twin.sim, which chooses the headless OpenGL backend.
 import mujoco  # isort: skip
@@ -69,7 +69,7 @@ def bench_pairs(pairs: int) -> list[tuple[str, float, dict[int, float]]]:
                 t0 = time.perf_counter()
                 for _ in range(pairs):
                     for on in (True, False):
-                        world.set_leds("child1", on)
+                        world.sensing.set_leds("child1", on)
                         sim.capture(name, sensor)
                 ours[s] = (time.perf_counter() - t0) / pairs * 1e3
             rows.append((name, bare_ms, ours))

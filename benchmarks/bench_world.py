@@ -14,7 +14,7 @@ from pathlib import Path
 
 from twin.scenario import load_scenario
 from twin.sim.render import CameraRenderer
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 # Imported after twin.sim, which chooses the headless OpenGL backend.
 import mujoco  # isort: skip
@@ -35,7 +35,7 @@ def bench_physics(seconds: float) -> list[tuple[str, float, float]]:
     # first leg (south of the island), child1 south-east towards the route, child2 west
     # along the north side (south of stairs_west, west of core_north).
     for name, goal in DRIVES.items():
-        world.drive(name, goal)
+        world.driving.drive(name, goal)
     world.run(0.5)  # warm-up
     ticks = round(seconds / world.control_period)
     t0 = time.perf_counter()
@@ -43,7 +43,7 @@ def bench_physics(seconds: float) -> list[tuple[str, float, float]]:
     wall = time.perf_counter() - t0
     steps = ticks * world.substeps
     sim = ticks * world.control_period
-    moving = len(world.moving())
+    moving = len(world.driving.moving())
     rows.append(
         (
             f"World.step, 3 robots driving ({moving} still moving at the end)",
@@ -57,11 +57,13 @@ def bench_physics(seconds: float) -> list[tuple[str, float, float]]:
     mujoco.mj_step(m, d, nstep=steps)
     wall = time.perf_counter() - t0
     rows.append(("mj_step alone, same scene, last commands held", steps / wall, sim / wall))
-    if world.collisions:
+    if world.driving.collisions:
         # A robot pushing against a wall is not the workload this benchmark measures.
         raise RuntimeError(
             "robots collided during the benchmark: "
-            + ", ".join(f"{c.robot} with {c.other} at t = {c.time:.1f} s" for c in world.collisions)
+            + ", ".join(
+                f"{c.robot} with {c.other} at t = {c.time:.1f} s" for c in world.driving.collisions
+            )
         )
     return rows
 
@@ -72,7 +74,7 @@ def bench_cameras(frames: int) -> list[tuple[str, float]]:
     world = build_world(sc)
     world.run(0.2)
     for child in sc.robots.children:
-        world.set_leds(child.name, True)
+        world.sensing.set_leds(child.name, True)
     rows = []
     with CameraRenderer(world) as r:
         for name in world.camera_names:

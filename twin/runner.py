@@ -5,7 +5,7 @@ This is the one place where the backend is chosen: a simulated rig at the ``rend
 that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
 :class:`twin.campaign.Campaign`. The simulation's truth (camera poses, the parent's true
 pose at every CPS fix) is written to the log beside the readings, under ``/truth/``. The
-results are then computed from the log alone (:func:`twin.campaign.results.results_from_log`):
+results are then computed from the log alone (:func:`twin.campaign.log_results.results_from_log`):
 
 - ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
   calibration), ``DIR/figures/`` and ``DIR/report.md``.
@@ -25,8 +25,8 @@ import numpy as np
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from calib.io.camera_files import camera_from_dict, camera_to_dict, save_camera
 from twin.campaign import Campaign, Progress
+from twin.campaign.log_results import META, SUMMARY, TRUTH_CAMERA, TRUTH_PARENT, results_from_log
 from twin.campaign.records import PARENT_FIX
-from twin.campaign.results import META, SUMMARY, TRUTH_CAMERA, TRUTH_PARENT, results_from_log
 from twin.hal.recording import Recorder, recorded
 from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder, read_log
@@ -34,7 +34,7 @@ from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.schema import Noise
 from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 
 class _TruthTap:

@@ -26,7 +26,7 @@ from twin.campaign.geometry import (
 )
 from twin.campaign.route import RoutePath
 from twin.scenario.geometry import floor_view
-from twin.scenario.schema import Formation, Scenario
+from twin.scenario.schema import FormationSettings, Scenario
 
 IMAGE_MARGIN = 12.0
 """The planned LED pixels stay this far inside the image, px, so that a child that stops a
@@ -76,7 +76,7 @@ def formation(
     parent_now: ArrayLike,
     parent_next: ArrayLike,
     direction: float,
-    form: Formation,
+    form: FormationSettings,
     instrument_z: float,
     waiting_xy: ArrayLike | None = None,
 ) -> list[Stop] | None:

@@ -57,7 +57,7 @@ from twin.instruments.marker_pose import led_positions
 from twin.localization.observation import ChildObservation
 from twin.localization.pose import ParentPose
 from twin.localization.sequence import CpsSequence
-from twin.scenario.checks import station_visibility
+from twin.scenario.cross_checks import station_visibility
 from twin.scenario.geometry import floor_view
 from twin.scenario.schema import Scenario
 from twin.timing import timed

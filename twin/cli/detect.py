@@ -180,7 +180,7 @@ def _capture(args: argparse.Namespace, sequence: SwitchingSequence, console: Con
     import twin.sim  # noqa: F401  (chooses the headless OpenGL backend)
     from twin.sim.capture import CameraSimulator
     from twin.sim.placement import stand_for_led
-    from twin.sim.scene import build_world
+    from twin.sim.world import build_world
 
     world = build_world(sc)
     marker = sc.marker.assembly()

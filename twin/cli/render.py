@@ -54,12 +54,12 @@ def run(args: argparse.Namespace) -> int:
     from twin.png import save_png
     from twin.sim.capture import CameraSimulator
     from twin.sim.render import CameraRenderer
-    from twin.sim.scene import build_world
+    from twin.sim.world import build_world
 
     world = build_world(sc)
     world.run(0.2)
     for child in sc.robots.children:
-        world.set_leds(child.name, args.leds == "on")
+        world.sensing.set_leds(child.name, args.leds == "on")
     if args.pinhole:
         with CameraRenderer(world) as renderer:
             image = renderer.render(args.camera)

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
-    from twin.sim.scene import build_world
+    from twin.sim.world import build_world
 
     world = build_world(sc)
     print_summary(sc, world.model, console)

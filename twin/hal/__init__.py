@@ -7,8 +7,8 @@
 - :mod:`.rig`: :class:`Rig`, the devices of one campaign.
 - :mod:`.recording`: :func:`recorded`, a rig whose every reading goes to a recorder.
 
-No backend is imported here: the MuJoCo twin (:mod:`twin.sim.backend`) and real drivers
-implement these classes.
+No backend is imported here: the MuJoCo twin (:mod:`twin.sim.rig`) implements these
+classes, and real drivers will.
 """
 
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds, MobileBase, TotalStation

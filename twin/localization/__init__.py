@@ -1,7 +1,7 @@
 """Cooperative positioning (CPS): solvers, covariance propagation and the step record.
 
 - :mod:`.planar`: Rz, paper eq. (1) and its inverse.
-- :mod:`.checks`: input checks, ``PoorGeometryWarning``, ``ConvergenceWarning``.
+- :mod:`.input_checks`: input checks, ``PoorGeometryWarning``, ``ConvergenceWarning``.
 - :mod:`.pose`: ``ParentPose`` and ``CpsSolution``.
 - :mod:`.closed_form`: the paper's two-child closed form (eq. 2) with covariance.
 - :mod:`.wls`: generalised least squares for two or more children.

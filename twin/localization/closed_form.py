@@ -30,7 +30,7 @@ from twin.instruments.consistency import (
     raise_if_inconsistent,
 )
 from twin.instruments.errors import InconsistentChildrenError
-from twin.localization.checks import (
+from twin.localization.input_checks import (
     DEFAULT_MAX_YAW_STD,
     DEFAULT_MIN_BASELINE,
     check_covariance,

@@ -33,7 +33,7 @@ from twin.instruments.marker_pose import MARKER_DOF, MarkerPose, cube_centroid, 
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import TotalStationMeasurement
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
-from twin.localization.checks import check_covariance
+from twin.localization.input_checks import check_covariance
 
 
 @dataclass(frozen=True, eq=False)

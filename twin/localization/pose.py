@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from calib.rotation import rot_z
-from twin.localization.checks import PoorGeometryWarning, check_covariance
+from twin.localization.input_checks import PoorGeometryWarning, check_covariance
 from twin.localization.planar import level2world
 
 

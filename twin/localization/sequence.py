@@ -33,8 +33,8 @@ from numpy.typing import NDArray
 
 from calib.rotation import rot_z
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, check_false_alarm_rate
-from twin.localization.checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
 from twin.localization.closed_form import solve_closed_form
+from twin.localization.input_checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
 from twin.localization.observation import ChildObservation
 from twin.localization.pose import CpsSolution, ParentPose
 from twin.localization.propagation import level2world_jacobian
@@ -92,7 +92,7 @@ class CpsSequence:
         initial_pose: the parent's pose at its first station; default the world origin
             with zero covariance (the world is the parent's first levelled frame).
         solver: ``"wls"`` (any number >= 2 of children) or ``"closed_form"`` (exactly two).
-        min_baseline, max_yaw_std: passed to the solver (see :mod:`.checks`).
+        min_baseline, max_yaw_std: passed to the solver (see :mod:`.input_checks`).
         false_alarm_rate: passed to the solver: probability that consistent data raise
             :class:`InconsistentChildrenError` at a parent step; None switches it off.
     """

@@ -16,7 +16,7 @@ from matplotlib.figure import Figure
 from twin.montecarlo.sources import ALL
 from twin.montecarlo.summary import visits_of
 from twin.report.figures import PALETTE, no_data, save_figure
-from twin.report.results import visit_name
+from twin.report.reading import visit_name
 
 
 def histograms(rows: Sequence[dict[str, Any]], summary: dict[str, Any], path: str | Path) -> Path:

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from twin.campaign.log_results import TRUTH_PARENT
 from twin.campaign.records import CALIBRATION, PARENT_FIX
-from twin.campaign.results import TRUTH_PARENT
 
 
 def camera_position_covariance(

@@ -11,7 +11,7 @@ from typing import Any
 from twin.montecarlo.sources import SOURCES
 from twin.montecarlo.summary import AGREEMENT
 from twin.report.markdown import fmt, table
-from twin.report.results import visit_name
+from twin.report.reading import visit_name
 
 
 def _distribution_rows(summary: dict[str, Any]) -> list[str]:

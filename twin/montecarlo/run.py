@@ -21,7 +21,7 @@ from twin.montecarlo.seeds import trial_seed
 from twin.montecarlo.sources import configurations
 from twin.montecarlo.table import TrialTable
 from twin.montecarlo.trial import TrialSpec, run_trial
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.scenario import Scenario
 
 TABLE = "trials.csv"

@@ -17,7 +17,7 @@ import numpy as np
 
 from twin.montecarlo.prediction import predictions_from_log
 from twin.montecarlo.sources import isolate
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.scenario import Scenario
 
 COLUMNS: dict[str, type] = {

@@ -22,7 +22,7 @@ from matplotlib.patches import Polygon, Rectangle
 from numpy.typing import NDArray
 
 from twin.report import paper
-from twin.report.results import (
+from twin.report.reading import (
     Results,
     calibrations,
     error,

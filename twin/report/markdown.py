@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.report import figures, paper
-from twin.report.results import (
+from twin.report.reading import (
     Results,
     VisitKey,
     calibrations,

@@ -12,7 +12,7 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ValidationError
 
-from twin.scenario.checks import check_scenario
+from twin.scenario.cross_checks import check_scenario
 from twin.scenario.errors import ScenarioError, ScenarioIssue
 from twin.scenario.schema import Scenario
 

@@ -7,7 +7,7 @@ world frame W: the parent's instrument frame at its first station, z up. The flo
 
 This module checks each value on its own (types, ranges, lengths); cross-checks between
 sections (a camera inside the space, a route clear of obstacles, a station that sees its
-camera's view) live in :mod:`twin.scenario.checks`.
+camera's view) live in :mod:`twin.scenario.cross_checks`.
 """
 
 from __future__ import annotations
@@ -517,7 +517,7 @@ class Calibration(Frozen):
     min_visible_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
 
 
-class Formation(Frozen):
+class FormationSettings(Frozen):
     """Where the children stop relative to the parent's next station during CPS travel.
 
     Both children stand ahead of the station along the route, the nearer ``near_gap`` and
@@ -536,7 +536,7 @@ class Formation(Frozen):
     lateral: Annotated[float, Field(ge=0.0, le=5.0)] = 0.7
 
 
-class Campaign(Frozen):
+class CampaignSettings(Frozen):
     """How the calibration campaign runs (paper Section IV).
 
     Attributes:
@@ -557,7 +557,7 @@ class Campaign(Frozen):
     reference_points: Annotated[int, Field(ge=8, le=1000)] = 70
     station_points: Annotated[int, Field(ge=8, le=1000)] = 70
     min_points: Annotated[int, Field(ge=8, le=1000)] = 24
-    formation: Formation = Formation()
+    formation: FormationSettings = FormationSettings()
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
     pixel_size_mm: Annotated[float, Field(gt=0.0, le=0.1)] = 0.015
@@ -654,7 +654,7 @@ class Scenario(Frozen):
     calibration: Calibration
     sim: SimConfig = SimConfig()
     people: tuple[Person, ...] = ()
-    campaign: Campaign = Campaign()
+    campaign: CampaignSettings = CampaignSettings()
     faults: Faults = Faults()
     source: str = ""
 

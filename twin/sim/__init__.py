@@ -7,8 +7,12 @@ before anything imports mujoco. Modules (import what you need):
 - :mod:`twin.sim.hall`: the space (floor, walls, obstacles, tilted floor patches).
 - :mod:`twin.sim.people`: people walking through the space (moving distractors).
 - :mod:`twin.sim.robots`: loading the robot models and attaching them to a scene.
-- :mod:`twin.sim.scene`: :func:`build_world` composes a scenario into a :class:`World`.
-- :mod:`twin.sim.drive`: go-to-pose controller with the Pioneers' speed limits.
+- :mod:`twin.sim.scene`: composes a scenario into a MuJoCo model (:class:`mujoco.MjSpec`).
+- :mod:`twin.sim.world`: :func:`build_world` compiles it into a :class:`World` that steps it
+  and knows where everything truly is; :mod:`twin.sim.driving` moves the robots (commands,
+  controllers, the wheel hold, odometry, collisions), :mod:`twin.sim.sensing` answers lines
+  of sight and switches LEDs and lights.
+- :mod:`twin.sim.controller`: go-to-pose controller with the Pioneers' speed limits.
 - :mod:`twin.sim.odometry`: wheel odometry that drifts.
 - :mod:`twin.sim.gl`: the headless OpenGL backend (EGL, else OSMesa).
 - :mod:`twin.sim.render`: offscreen rendering of pinhole images.

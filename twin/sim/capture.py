@@ -30,8 +30,8 @@ from twin.scenario.schema import SensorConfig
 from twin.sim.lens import LensWarp, lens_warp
 from twin.sim.render import CameraRenderer
 from twin.sim.robots import N_LEDS
-from twin.sim.scene import World
 from twin.sim.sensor import expose
+from twin.sim.world import World
 
 # Stream of numpy.random.SeedSequence reserved for sensor noise and light flicker.
 SENSOR_STREAM = 2
@@ -166,7 +166,7 @@ class CameraSimulator(Closing):
             camera=camera,
             time=self.world.time,
             image=image,
-            light_level=self.world.light_level,
+            light_level=self.world.sensing.light_level,
             leds=self.led_truth(camera),
             people=tuple(
                 (p.name, self.world.data.xpos[self.world.model.body(p.name).id][:2].copy())
@@ -203,21 +203,21 @@ class CameraSimulator(Closing):
         if frame_interval < 0:
             raise ValueError(f"frame_interval must be >= 0 s, got {frame_interval}")
         lighting = self.world.scenario.space.lighting
-        start_level = self.world.light_level
+        start_level = self.world.sensing.light_level
         frames = []
         try:
             for k, row in enumerate(rows):
-                self.world.set_leds(child, [bool(b) for b in row])
+                self.world.sensing.set_leds(child, [bool(b) for b in row])
                 level = start_level * (1.0 + lighting.drift_per_frame) ** k
                 if lighting.flicker > 0:
                     level *= max(0.0, 1.0 + lighting.flicker * self.flicker_rng.standard_normal())
-                self.world.set_light_level(level)
+                self.world.sensing.set_light_level(level)
                 frames.append(self.capture(camera, sensor))
                 if frame_interval > 0 and k + 1 < len(rows):
                     self.world.run(frame_interval)
         finally:
-            self.world.set_leds(child, False)
-            self.world.set_light_level(start_level)
+            self.world.sensing.set_leds(child, False)
+            self.world.sensing.set_light_level(start_level)
         return frames
 
     def led_truth(self, camera: str) -> tuple[LedTruth, ...]:
@@ -227,7 +227,7 @@ class CameraSimulator(Closing):
         out = []
         for child in self.world.scenario.robots.children:
             _, leds = self.world.marker_points(child.name)
-            lit = self.world.leds_on(child.name)
+            lit = self.world.sensing.leds_on(child.name)
             pixels = project_or_nan(cam, leds)
             inside = in_image(pixels, cam.image_size)
             for k, p in enumerate(leds):
@@ -277,7 +277,7 @@ def led_visible_fraction(
     ring = OUTLINE_FRACTION * radius * (np.outer(np.cos(angles), a) + np.outer(np.sin(angles), b))
     points = np.vstack([centre, centre + ring])
     # Anything within the LED's own radius of the target point is the LED itself.
-    seen = [world.line_of_sight(origin, q, tolerance=1.25 * radius) for q in points]
+    seen = [world.sensing.line_of_sight(origin, q, tolerance=1.25 * radius) for q in points]
     return float(np.mean(seen))
 
 

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from twin.closing import Closing
 from twin.sim.camera import PIXEL_PITCH, principal_pixel_from_opencv
 from twin.sim.gl import make_renderer
-from twin.sim.scene import World
+from twin.sim.world import World
 
 # Geom groups drawn: the space (0), test shapes (1) and the robots' visual geoms (2);
 # the collision geoms (3) and all sites stay hidden.

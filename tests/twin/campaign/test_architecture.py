@@ -42,7 +42,7 @@ def test_campaign_modules_import_no_backend():
 
 def test_importing_the_campaign_loads_no_backend():
     code = (
-        "import sys, twin.campaign, twin.campaign.results\n"
+        "import sys, twin.campaign, twin.campaign.log_results\n"
         "bad = [m for m in sys.modules if m.startswith(('mujoco', 'twin.sim', 'twin.drivers'))]\n"
         "print(bad)\n"
         "assert not bad, bad\n"
@@ -53,5 +53,5 @@ def test_importing_the_campaign_loads_no_backend():
 
 def test_the_checker_catches_a_backend_import(tmp_path):
     bad = tmp_path / "bad.py"
-    bad.write_text("from twin.sim.scene import World\nimport numpy\n")
+    bad.write_text("from twin.sim.world import World\nimport numpy\n")
     assert any(n.startswith(FORBIDDEN) for n in _imports(bad))

@@ -130,7 +130,7 @@ def test_a_killed_run_keeps_what_it_measured(tmp_path):
     assert all(np.isfinite(s.distance) for s in shots)
     assert not (out / "results.json").exists()
     # What was recorded still gives results (the reference data sets taken so far).
-    from twin.campaign.results import results_from_log
+    from twin.campaign.log_results import results_from_log
 
     partial = results_from_log(contents.messages)
     assert partial["complete"] is False

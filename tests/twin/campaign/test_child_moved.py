@@ -12,7 +12,7 @@ from twin.campaign.procedure import Campaign
 from twin.campaign.shooting import STILL_NOISE_FREE, moved_between
 from twin.instruments.consistency import chi2_threshold
 from twin.localization.observation import ChildObservation
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.sim.rig.base import GeometricBase

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
 

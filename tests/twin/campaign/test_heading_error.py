@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from calib.rotation import rot_z, wrap_angle
 from twin.campaign.shooting import MIN_ORIENTING_RANGE, oriented_on, same_marker
 from twin.localization.pose import ParentPose
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.sim.rig.base import GeometricBase

@@ -9,7 +9,7 @@ import numpy as np
 
 from twin.runner import built_markers
 from twin.scenario import load_scenario
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 SMOKE = Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml"
 

@@ -9,8 +9,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from tests.twin.localization.helpers import iso_cov, measure_from
-from twin.localization.checks import ConvergenceWarning, PoorGeometryWarning
 from twin.localization.closed_form import solve_closed_form
+from twin.localization.input_checks import ConvergenceWarning, PoorGeometryWarning
 from twin.localization.pose import ParentPose
 from twin.localization.wls import solve_wls
 

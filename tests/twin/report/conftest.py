@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from twin.report.results import planned_visits
+from twin.report.reading import planned_visits
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.geometry import floor_view_corners
 

@@ -19,7 +19,8 @@ from twin.sim.camera import (
     tsai_from_model,
 )
 from twin.sim.render import CameraRenderer
-from twin.sim.scene import build_spec, build_world
+from twin.sim.scene import build_spec
+from twin.sim.world import build_world
 
 from .helpers import SCENARIOS, scenario
 
@@ -153,17 +154,17 @@ def test_leds_switch_and_appear_where_projected():
     _, leds = world.marker_points("child1")
     with CameraRenderer(world) as r:
         off = r.render("cam1").astype(float)
-        world.set_leds("child1", True)
-        assert world.leds_on("child1") == [True] * 4
+        world.sensing.set_leds("child1", True)
+        assert world.sensing.leds_on("child1") == [True] * 4
         on = r.render("cam1").astype(float)
-        world.set_leds("child1", [False, True, False, False])
+        world.sensing.set_leds("child1", [False, True, False, False])
         one = r.render("cam1").astype(float)
     diff = np.abs(on - off).sum(axis=2)
     assert diff.max() > 150
     # Every LED inside the image and in view shows up within 0.5 px of its projection.
     uv = cam.project(leds)
     visible = cam.in_image(uv) & np.array(
-        [world.line_of_sight(cam.position, p, tolerance=0.03) for p in leds]
+        [world.sensing.line_of_sight(cam.position, p, tolerance=0.03) for p in leds]
     )
     assert visible.sum() >= 2
     count, labels = cv2.connectedComponents((diff > 30).astype(np.uint8))

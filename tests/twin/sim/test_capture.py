@@ -9,7 +9,7 @@ import pytest
 from calib.opencv_camera import OpenCVCamera
 from twin.scenario.schema import Obstacle
 from twin.sim.capture import CameraSimulator
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 from .helpers import scenario
 
@@ -108,8 +108,8 @@ def test_sequence_switches_the_leds_and_restores_the_world():
         assert [t.lit for t in f.truth("child2")] == [False] * 4
         assert f.image.shape == (240, 320, 3)
         assert f.image.dtype == np.uint8
-    assert world.leds_on("child1") == [False] * 4
-    assert world.light_level == 1.0
+    assert world.sensing.leds_on("child1") == [False] * 4
+    assert world.sensing.light_level == 1.0
     with pytest.raises(ValueError, match=r"shape \(n_frames, 4\)"):
         CameraSimulator(world).capture_sequence("cam1", "child1", np.ones((3, 2), bool))
 
@@ -119,13 +119,13 @@ def test_light_level_scales_the_image():
     noiseless = world.scenario.camera("cam1").sensor.model_copy(update={"noise": False})
     with CameraSimulator(world) as sim:
         full = sim.capture("cam1", noiseless).image.astype(float)
-        world.set_light_level(0.5)
+        world.sensing.set_light_level(0.5)
         half = sim.capture("cam1", noiseless).image.astype(float)
     lit = (full > 20) & (full < 250)
     ratio = np.median(half[lit] / full[lit])
     assert ratio == pytest.approx(0.5, abs=0.02)
     with pytest.raises(ValueError, match="light level"):
-        world.set_light_level(-0.1)
+        world.sensing.set_light_level(-0.1)
 
 
 def test_flicker_and_drift_change_the_light_from_frame_to_frame():
@@ -150,7 +150,7 @@ def test_place_puts_a_robot_at_rest_and_resets_its_odometry():
     world.place("child2", (2.0, -1.0), 0.7)
     pose = world.robot_pose("child2")
     np.testing.assert_allclose(pose, [2.0, -1.0, 0.7], atol=5e-3)
-    np.testing.assert_allclose(world.odometry["child2"].pose, pose, atol=1e-9)
+    np.testing.assert_allclose(world.driving.odometry["child2"].pose, pose, atol=1e-9)
     world.run(0.5)
     np.testing.assert_allclose(world.robot_pose("child2"), pose, atol=2e-3)
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from twin.scenario.robots import PIONEER3DX
-from twin.sim.drive import DriveController, DrivePhase, DriveTolerance
-from twin.sim.scene import build_world
+from twin.sim.controller import DriveController, DrivePhase, DriveTolerance
+from twin.sim.world import build_world
 
 from .helpers import scenario
 
@@ -33,7 +33,7 @@ def test_robot_reaches_a_goal_5_m_away_and_stops(robot, bearing):
 
 def test_speed_and_acceleration_limits_are_kept():
     world = build_world(scenario("smoke"))
-    ctl = world.drive("child1", (6.5, 1.5))
+    ctl = world.driving.drive("child1", (6.5, 1.5))
     speeds = []
     while not ctl.done and world.time < 20.0:
         world.step()
@@ -53,7 +53,7 @@ def test_driving_into_a_wall_reports_the_collision():
     assert result.collisions[0].robot == "child2"
     assert result.collisions[0].other == "wall_south"
     assert result.collisions[0].position[1] == pytest.approx(-3.0, abs=0.05)
-    assert world.collisions == list(result.collisions)
+    assert world.driving.collisions == list(result.collisions)
     # Stopped at the wall, not through it.
     assert world.robot_pose("child2")[1] > -3.0
 
@@ -72,7 +72,7 @@ def test_odometry_drifts_and_is_reproducible():
         world.drive_to("child1", (6.5, 1.5))
         world.drive_to("child1", (6.5, -1.0))
         world.drive_to("child1", (-0.5, -1.0))
-        runs.append((world.odometry["child1"].pose, world.robot_pose("child1")))
+        runs.append((world.driving.odometry["child1"].pose, world.robot_pose("child1")))
     (odo, truth), (odo2, truth2) = runs
     np.testing.assert_array_equal(odo, odo2)  # same seed, same result
     np.testing.assert_array_equal(truth, truth2)
@@ -88,7 +88,7 @@ def test_odometry_depends_on_the_seed():
     a, b = build_world(scenario("smoke")), build_world(scenario_from_dict(raw))
     for w in (a, b):
         w.drive_to("child1", (6.5, 1.5))
-    assert not np.array_equal(a.odometry["child1"].pose, b.odometry["child1"].pose)
+    assert not np.array_equal(a.driving.odometry["child1"].pose, b.driving.odometry["child1"].pose)
 
 
 def test_parent_tilts_on_a_tilted_floor_patch():
@@ -121,12 +121,12 @@ def test_dead_reckoning_alone_misses_the_goal():
     for goal in goals:
         result = world.drive_to("child1", goal, pose_source="odometry")
         assert result.status == "reached"
-    believed = world.odometry["child1"].pose
+    believed = world.driving.odometry["child1"].pose
     true = world.robot_pose("child1")
     # The robot believes it is at the goal; it is not: odometry drift.
     assert np.linalg.norm(believed[:2] - goals[-1]) < 0.02
     assert np.linalg.norm(true[:2] - goals[-1]) > 0.02
-    assert world.odometry["child1"].distance == pytest.approx(9.8, abs=0.3)
+    assert world.driving.odometry["child1"].distance == pytest.approx(9.8, abs=0.3)
 
 
 @pytest.mark.parametrize("robot", ["child1", "parent"])
@@ -161,18 +161,18 @@ def test_pushing_against_a_wall_is_one_collision_and_a_new_contact_another():
     result = world.drive_to("child2", (1.5, -6.0))  # the south wall is at y = -3
     assert result.status == "collision"
     # Keep pushing: the contact flickers, but it is the same collision.
-    world.set_body_velocity("child2", 0.3, 0.0)
+    world.driving.set_body_velocity("child2", 0.3, 0.0)
     world.run(4.0)
-    assert [c.other for c in world.collisions] == ["wall_south"]
+    assert [c.other for c in world.driving.collisions] == ["wall_south"]
     # Back off, wait, drive in again: a new collision.
-    world.set_body_velocity("child2", -0.3, 0.0)
+    world.driving.set_body_velocity("child2", -0.3, 0.0)
     world.run(2.0)
-    world.set_body_velocity("child2", 0.0, 0.0)
+    world.driving.set_body_velocity("child2", 0.0, 0.0)
     world.run(1.0)
-    assert len(world.collisions) == 1
-    world.set_body_velocity("child2", 0.3, 0.0)
+    assert len(world.driving.collisions) == 1
+    world.driving.set_body_velocity("child2", 0.3, 0.0)
     world.run(3.0)
-    assert [c.other for c in world.collisions] == ["wall_south", "wall_south"]
+    assert [c.other for c in world.driving.collisions] == ["wall_south", "wall_south"]
 
 
 @pytest.mark.parametrize("robot", ["parent", "child1"])
@@ -182,13 +182,13 @@ def test_direct_commands_keep_the_speed_and_acceleration_limits(robot, via):
     h = world.robots[robot]
     p = h.platform
     if via == "body":
-        world.set_body_velocity(robot, 10.0, 0.0)
+        world.driving.set_body_velocity(robot, 10.0, 0.0)
     else:
-        world.set_wheel_speeds(robot, 20.0, 20.0)
+        world.driving.set_wheel_speeds(robot, 20.0, 20.0)
     commands, speeds = [], []
     for _ in range(150):
         world.step()
-        commands.append(world.body_velocity_command(robot)[0])
+        commands.append(world.driving.body_velocity_command(robot)[0])
         speeds.append(np.linalg.norm(world.data.qvel[h.qvel : h.qvel + 2]))
     commands, speeds = np.array(commands), np.array(speeds)
     dt = world.control_period
@@ -198,15 +198,15 @@ def test_direct_commands_keep_the_speed_and_acceleration_limits(robot, via):
     accel = (speeds[5:] - speeds[:-5]) / (5 * dt)
     assert accel.max() <= p.max_accel * 1.3
     # Turning: the yaw rate command is clipped and ramped too; a stop is immediate.
-    world.set_body_velocity(robot, 0.0, -10.0)
+    world.driving.set_body_velocity(robot, 0.0, -10.0)
     rates = []
     for _ in range(100):
         world.step()
-        rates.append(world.body_velocity_command(robot)[1])
+        rates.append(world.driving.body_velocity_command(robot)[1])
     assert min(rates) == pytest.approx(-p.max_yaw_rate)
     assert np.diff(rates).min() >= -p.max_yaw_accel * dt * (1 + 1e-6)
-    world.stop(robot)
-    assert world.body_velocity_command(robot) == (0.0, 0.0)
+    world.driving.stop(robot)
+    assert world.driving.body_velocity_command(robot) == (0.0, 0.0)
 
 
 def test_child_brakes_from_top_speed_off_a_floor_patch_and_stays_upright():
@@ -216,7 +216,7 @@ def test_child_brakes_from_top_speed_off_a_floor_patch_and_stays_upright():
     world = build_world(scenario("paper_hall"))
     world.place("child2", (40.0, 0.0), -0.5)
     h = world.robots["child2"]
-    ctl = world.drive("child2", (40.0, 4.0))
+    ctl = world.driving.drive("child2", (40.0, 4.0))
     worst = 0.0
     while not ctl.done and world.time < 30.0:
         world.step()
@@ -238,7 +238,7 @@ def test_a_robot_that_falls_over_stops_and_says_so():
     assert result.status == "fell_over"
     assert not result.reached
     assert math.degrees(h.tilt(world.data)) > 30.0
-    assert world.moving() == []
+    assert world.driving.moving() == []
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,7 @@ from calib.detection import DetectionFailure, SwitchingSequence, detect_leds
 from twin.scenario.schema import Obstacle, Person
 from twin.sim.capture import CameraSimulator
 from twin.sim.placement import stand_for_led
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 from .helpers import scenario
 

@@ -11,7 +11,7 @@ import pytest
 
 from calib.rotation import wrap_angle
 from twin.scenario import Scenario, scenario_from_dict
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 from .helpers import scenario
 
@@ -33,7 +33,7 @@ def test_a_90_deg_turn_in_place_leaves_odometry_on_the_true_heading(robot, turn_
     assert result.status == "reached", result
     turned = wrap_angle(result.pose[2] - start[2])
     assert turned == pytest.approx(math.radians(turn_deg), abs=math.radians(1.0))
-    error = wrap_angle(world.odometry[robot].pose[2] - result.pose[2])
+    error = wrap_angle(world.driving.odometry[robot].pose[2] - result.pose[2])
     assert abs(error) < math.radians(1.5), math.degrees(error)
 
 
@@ -43,7 +43,7 @@ def test_odometry_follows_a_straight_line(robot):
     start = world.robot_pose(robot)
     result = world.drive_to(robot, start[:2] + np.array([4.0, 0.0]))
     assert result.status == "reached", result
-    odo = world.odometry[robot].pose
+    odo = world.driving.odometry[robot].pose
     assert np.linalg.norm(odo[:2] - result.pose[:2]) < 0.02  # 0.5 % of 4 m
     assert abs(wrap_angle(odo[2] - result.pose[2])) < math.radians(0.2)
-    assert world.odometry[robot].distance == pytest.approx(4.0, abs=0.02)
+    assert world.driving.odometry[robot].distance == pytest.approx(4.0, abs=0.02)

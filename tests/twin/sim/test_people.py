@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from twin.scenario.schema import Person
 from twin.sim.people import person_pose
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 from .helpers import scenario
 
@@ -52,11 +52,11 @@ def test_people_in_the_world_move_and_block_lines_of_sight():
     body = world.model.body("walker")
     assert world.model.body_mocapid[body.id] >= 0
     # At t = 0 the person stands at (3, -2): a line along y = -2 through it is blocked.
-    assert not world.line_of_sight([1.0, -2.0, 0.5], [5.0, -2.0, 0.5])
-    assert world.line_of_sight([1.0, 1.9, 0.5], [5.0, 1.9, 0.5])
+    assert not world.sensing.line_of_sight([1.0, -2.0, 0.5], [5.0, -2.0, 0.5])
+    assert world.sensing.line_of_sight([1.0, 1.9, 0.5], [5.0, 1.9, 0.5])
     world.run(4.0)  # now near (3, 2)
     np.testing.assert_allclose(world.data.xpos[body.id][:2], [3.0, 2.0], atol=0.05)
-    assert world.line_of_sight([1.0, -2.0, 0.5], [5.0, -2.0, 0.5])
-    assert not world.line_of_sight([1.0, 1.9, 0.5], [5.0, 1.9, 0.5])
+    assert world.sensing.line_of_sight([1.0, -2.0, 0.5], [5.0, -2.0, 0.5])
+    assert not world.sensing.line_of_sight([1.0, 1.9, 0.5], [5.0, 1.9, 0.5])
     # No contacts: robots walk through people.
-    assert world.collisions == []
+    assert world.driving.collisions == []

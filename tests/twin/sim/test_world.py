@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from twin.scenario import scenario_from_dict
-from twin.sim.scene import build_world
+from twin.sim.world import build_world
 
 from .helpers import SCENARIOS, scenario, unnamed
 
@@ -27,7 +27,7 @@ def test_scenario_builds_and_steps_one_second_without_warnings(name):
     m = world.model
     assert not unnamed(m)
     # Robots at rest on the floor, not colliding.
-    assert world.collisions == []
+    assert world.driving.collisions == []
     for robot in world.scenario.robots.all:
         pose = world.robot_pose(robot.name)
         np.testing.assert_allclose(pose[:2], robot.start_xy, atol=1e-3)
@@ -106,10 +106,10 @@ def test_line_of_sight():
     world = build_world(scenario("paper_hall"))
     inst, _ = world.instrument_pose()
     cubes, _ = world.marker_points("child1")
-    assert world.line_of_sight(inst, cubes[0], exclude_robot="parent")
+    assert world.sensing.line_of_sight(inst, cubes[0], exclude_robot="parent")
     # The island and the core hide the far east end from the start.
-    assert not world.line_of_sight(inst, [42.0, 5.0, 1.0], exclude_robot="parent")
-    dist, geom = world.ray(inst, [1.0, 0.0, 0.0], exclude_robot="parent")
+    assert not world.sensing.line_of_sight(inst, [42.0, 5.0, 1.0], exclude_robot="parent")
+    dist, geom = world.sensing.ray(inst, [1.0, 0.0, 0.0], exclude_robot="parent")
     assert geom == "wall_east"
     assert dist == pytest.approx(52.0, abs=1e-6)
 
@@ -117,7 +117,7 @@ def test_line_of_sight():
 def test_the_space_uses_only_reserved_names_for_its_own_geoms():
     # Scenario validation keeps obstacle and patch names off these (MuJoCo wants unique
     # geom names); the builder must not name anything else in the space.
-    from twin.scenario.checks import RESERVED_NAMES
+    from twin.scenario.cross_checks import RESERVED_NAMES
 
     world = build_world(scenario("smoke"))
     space = world.scenario.space
@@ -138,10 +138,10 @@ def test_a_ray_ignores_every_body_of_the_excluded_robot():
         mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, "parent/front_left_wheel")
     ]
     direction = wheel - inst
-    dist, geom = world.ray(inst, direction)
+    dist, geom = world.sensing.ray(inst, direction)
     assert geom.startswith("parent/")
     # Past the chassis and the wheel, down to the floor.
-    dist, geom = world.ray(inst, direction, exclude_robot="parent")
+    dist, geom = world.sensing.ray(inst, direction, exclude_robot="parent")
     assert geom == "floor"
     unit = direction / np.linalg.norm(direction)
     assert dist == pytest.approx((world.scenario.space.floor_z - inst[2]) / unit[2], abs=1e-5)

@@ -1,7 +1,7 @@
 """The hardware-abstraction interface implemented on the MuJoCo world, at two fidelities.
 
 :func:`build_sim_rig` returns a :class:`twin.hal.Rig` whose devices act on a
-:class:`twin.sim.scene.World`:
+:class:`twin.sim.world.World`:
 
 - ``render``: the bases drive in MuJoCo on wheel odometry, the cameras are rendered through
   their lens and sensor, and the LEDs are found in the images by on/off subtraction.

@@ -18,7 +18,7 @@ from twin.hal.readings import DriveResult, DriveStatus, OdometryReading
 from twin.scenario.geometry import inside_obstacle, inside_space
 from twin.scenario.schema import StoppingConfig
 from twin.sim.rig.frames import WorldFrame
-from twin.sim.scene import World
+from twin.sim.world import World
 from twin.timing import timed
 
 UNREACHABLE_RADIUS = 0.5
@@ -91,7 +91,7 @@ class _SimBase(MobileBase):
         return start + d * (n - BLOCKED_SHORT_OF) / n
 
     def close(self) -> None:
-        self.world.stop(self._name)
+        self.world.driving.stop(self._name)
 
 
 class RenderBase(_SimBase):
@@ -118,13 +118,13 @@ class RenderBase(_SimBase):
         self._correction = frame.pose(np.zeros(3))
 
     def _believed(self) -> np.ndarray:
-        return _compose(self._correction, self.world.odometry[self._name].pose)
+        return _compose(self._correction, self.world.driving.odometry[self._name].pose)
 
     def odometry(self) -> OdometryReading:
         return self._reading(self._believed())
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
-        odo = self.world.odometry[self._name].pose
+        odo = self.world.driving.odometry[self._name].pose
         self._correction = _compose(np.array([x, y, yaw], dtype=float), _inverse(odo))
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:

@@ -16,7 +16,7 @@ from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
 from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.rig.total_station import SimTotalStation
-from twin.sim.scene import World
+from twin.sim.world import World
 from twin.timing import timed
 
 FIDELITIES = ("render", "geometric")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from twin.hal.devices import Clock
-from twin.sim.scene import World
+from twin.sim.world import World
 from twin.timing import timed
 
 

@@ -22,7 +22,7 @@ from twin.sim.capture import (
     project_or_nan,
 )
 from twin.sim.robots import N_LEDS
-from twin.sim.scene import World
+from twin.sim.world import World
 from twin.timing import timed
 
 
@@ -50,11 +50,13 @@ class SimLeds(MarkerLeds):
         flags = tuple(bool(f) for f in on)
         if len(flags) != N_LEDS:
             raise ValueError(f"give {N_LEDS} flags, got {len(flags)}")
-        self.world.set_leds(self._child, [f and k not in self.hidden for k, f in enumerate(flags)])
+        self.world.sensing.set_leds(
+            self._child, [f and k not in self.hidden for k, f in enumerate(flags)]
+        )
         return LedSwitch(self._child, self.clock.now(), flags)
 
     def close(self) -> None:
-        self.world.set_leds(self._child, False)
+        self.world.sensing.set_leds(self._child, False)
 
 
 class SimCamera(Camera):

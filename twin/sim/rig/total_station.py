@@ -14,7 +14,7 @@ from twin.instruments.tilt import read_inclinometer, tilt_from_orientation
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.robots import N_CUBES
-from twin.sim.scene import World
+from twin.sim.world import World
 
 PRISM_TOLERANCE = 0.04
 """A ray that stops within this distance of a prism (m) hits the prism's own housing (its
@@ -105,7 +105,7 @@ class SimTotalStation(TotalStation):
             )
 
         def clear(index: int, _position: np.ndarray) -> bool:
-            return self.world.line_of_sight(
+            return self.world.sensing.line_of_sight(
                 position, prisms_world[index], self.parent, tolerance=PRISM_TOLERANCE
             )
 

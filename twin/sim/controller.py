@@ -15,7 +15,7 @@ with the speed and acceleration limits of :class:`twin.scenario.robots.Platform`
 4. report done once stopped within the position tolerance of the goal, heading within
    tolerance; stopped off the goal, start again at step 1.
 
-Pure Python; :class:`twin.sim.scene.World` feeds it poses and applies its commands.
+Pure Python; :class:`twin.sim.world.World` feeds it poses and applies its commands.
 """
 
 from __future__ import annotations
