@@ -13,7 +13,8 @@ localisation from an external fix (CPS).
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 
 from numpy.typing import ArrayLike
 
@@ -28,7 +29,40 @@ from twin.hal.readings import (
     TiltReading,
     TotalStationMeasurement,
 )
+from twin.instruments.errors import (
+    LineOfSightBlockedError,
+    NoPrismInConeError,
+    OutOfRangeError,
+    TiltOutOfRangeError,
+)
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+
+DOCUMENTED_ERRORS: Mapping[str, tuple[type[Exception], ...]] = MappingProxyType(
+    {
+        "Clock.now": (),
+        "Clock.sleep": (ValueError,),
+        "TotalStation.point": (ValueError,),
+        "TotalStation.measure": (
+            NoPrismInConeError,
+            LineOfSightBlockedError,
+            OutOfRangeError,
+            TiltOutOfRangeError,
+        ),
+        "TotalStation.read_inclination": (TiltOutOfRangeError,),
+        "MobileBase.drive_to": (),
+        "MobileBase.odometry": (),
+        "MobileBase.set_pose": (ValueError,),
+        "MarkerLeds.switch": (ValueError,),
+        "Camera.capture": (),
+        "LedSensor.observe": (ValueError,),
+    }
+)
+"""The only errors each device method may raise (:func:`twin.hal.conformance.check_rig`
+holds a device to them). Everything else a device reports is a reading: a drive that
+fails ends with a :class:`DriveStatus`, an LED that is not found has a failure in its
+:class:`LedObservation`. ``ValueError`` stands for a bad argument: a negative time, an aim
+that is not a finite non-zero (3,) point, a non-finite pose, not one flag per LED, a child
+the sensor has no LEDs of."""
 
 
 class Clock(Closing):
@@ -40,7 +74,11 @@ class Clock(Closing):
 
     @abstractmethod
     def sleep(self, seconds: float) -> None:
-        """Let ``seconds`` pass (a simulation advances its world)."""
+        """Let ``seconds`` pass (a simulation advances its world).
+
+        Raises:
+            ValueError: ``seconds`` is negative.
+        """
 
     def close(self) -> None:
         """A clock holds nothing."""
@@ -66,7 +104,11 @@ class TotalStation(Closing):
 
     @abstractmethod
     def point(self, target_level: ArrayLike) -> None:
-        """Turn the telescope towards a predicted prism position, (3,) m, levelled frame."""
+        """Turn the telescope towards a predicted prism position, (3,) m, levelled frame.
+
+        Raises:
+            ValueError: the target is not a finite non-zero (3,) point.
+        """
 
     @abstractmethod
     def measure(self) -> TotalStationMeasurement:
@@ -74,7 +116,11 @@ class TotalStation(Closing):
 
     @abstractmethod
     def read_inclination(self) -> TiltReading:
-        """One reading of the inclination sensor."""
+        """One reading of the inclination sensor.
+
+        Raises:
+            TiltOutOfRangeError: the instrument leans beyond the sensor's working range.
+        """
 
 
 class MobileBase(Closing):
@@ -95,7 +141,11 @@ class MobileBase(Closing):
 
     @abstractmethod
     def set_pose(self, x: float, y: float, yaw: float) -> None:
-        """Correct the base's pose estimate from an external fix (m, rad)."""
+        """Correct the base's pose estimate from an external fix (m, rad).
+
+        Raises:
+            ValueError: the pose is not finite.
+        """
 
 
 class MarkerLeds(Closing):
@@ -113,7 +163,11 @@ class MarkerLeds(Closing):
 
     @abstractmethod
     def switch(self, on: Sequence[bool]) -> LedSwitch:
-        """Light the LEDs whose flag is True and switch off the others."""
+        """Light the LEDs whose flag is True and switch off the others.
+
+        Raises:
+            ValueError: not one flag per LED.
+        """
 
 
 class Camera(Closing):
@@ -153,4 +207,8 @@ class LedSensor(Closing):
 
     @abstractmethod
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
-        """Run ``sequence`` on the child's LEDs and find each LED in the camera's image."""
+        """Run ``sequence`` on the child's LEDs and find each LED in the camera's image.
+
+        Raises:
+            ValueError: the sensor has no LEDs of ``child``.
+        """

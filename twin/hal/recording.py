@@ -3,7 +3,8 @@
 :func:`recorded` wraps a :class:`Rig`'s devices so that each reading, each command that
 changes the world (a drive, an LED switch, a pose fix) and each device failure is handed
 to a :class:`Recorder` before the caller sees it. Images are not recorded (the LED
-observations made from them are).
+observations made from them are). The recording devices are wrappers
+(:mod:`twin.hal.wrappers`).
 """
 
 from __future__ import annotations
@@ -25,8 +26,15 @@ from twin.hal.readings import (
     TotalStationMeasurement,
 )
 from twin.hal.rig import Rig
+from twin.hal.wrappers import (
+    ClockWrapper,
+    LedSensorWrapper,
+    MarkerLedsWrapper,
+    MobileBaseWrapper,
+    TotalStationWrapper,
+    wrapped,
+)
 from twin.instruments.errors import InstrumentError
-from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
 
 class Recorder(Protocol):
@@ -35,32 +43,11 @@ class Recorder(Protocol):
     def record(self, topic: str, record: object, timestamp: float) -> None: ...
 
 
-class _RecordedClock(Clock):
-    def __init__(self, inner: Clock) -> None:
-        self.inner = inner
-
-    def now(self) -> float:
-        return self.inner.now()
-
-    def sleep(self, seconds: float) -> None:
-        self.inner.sleep(seconds)
-
-    def close(self) -> None:
-        self.inner.close()
-
-
-class _RecordedTotalStation(TotalStation):
+class _RecordedTotalStation(TotalStationWrapper):
     def __init__(self, inner: TotalStation, recorder: Recorder, clock: Clock) -> None:
-        self.inner, self._rec, self._clock = inner, recorder, clock
+        super().__init__(inner)
+        self._rec, self._clock = recorder, clock
         self._aim: list[float] = []
-
-    @property
-    def spec(self) -> TotalStationSpec:
-        return self.inner.spec
-
-    @property
-    def inclinometer(self) -> InclinometerSpec | None:
-        return self.inner.inclinometer
 
     def point(self, target_level: ArrayLike) -> None:
         self._aim = [float(x) for x in target_level]  # type: ignore[union-attr]
@@ -86,17 +73,11 @@ class _RecordedTotalStation(TotalStation):
         self._rec.record("/total_station/inclination", reading, reading.timestamp)
         return reading
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class _RecordedBase(MobileBase):
+class _RecordedBase(MobileBaseWrapper):
     def __init__(self, inner: MobileBase, recorder: Recorder, clock: Clock) -> None:
-        self.inner, self._rec, self._clock = inner, recorder, clock
-
-    @property
-    def name(self) -> str:
-        return self.inner.name
+        super().__init__(inner)
+        self._rec, self._clock = recorder, clock
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:
         result = self.inner.drive_to(goal_xy, goal_yaw)
@@ -114,50 +95,27 @@ class _RecordedBase(MobileBase):
         fix = OdometryReading(self.name, t, float(x), float(y), float(yaw))
         self._rec.record(f"/base/{self.name}/set_pose", fix, t)
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class _RecordedLeds(MarkerLeds):
+class _RecordedLeds(MarkerLedsWrapper):
     def __init__(self, inner: MarkerLeds, recorder: Recorder) -> None:
-        self.inner, self._rec = inner, recorder
-
-    @property
-    def child(self) -> str:
-        return self.inner.child
-
-    @property
-    def count(self) -> int:
-        return self.inner.count
+        super().__init__(inner)
+        self._rec = recorder
 
     def switch(self, on: Sequence[bool]) -> LedSwitch:
         event = self.inner.switch(on)
         self._rec.record(f"/leds/{self.child}", event, event.timestamp)
         return event
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class _RecordedLedSensor(LedSensor):
+class _RecordedLedSensor(LedSensorWrapper):
     def __init__(self, inner: LedSensor, recorder: Recorder) -> None:
-        self.inner, self._rec = inner, recorder
-
-    @property
-    def camera(self) -> str:
-        return self.inner.camera
-
-    @property
-    def image_size(self) -> tuple[int, int]:
-        return self.inner.image_size
+        super().__init__(inner)
+        self._rec = recorder
 
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         obs = self.inner.observe(child, sequence)
         self._rec.record(f"/camera/{self.camera}/leds", obs, obs.timestamp)
         return obs
-
-    def close(self) -> None:
-        self.inner.close()
 
 
 def _plain(details: object) -> dict:
@@ -176,14 +134,12 @@ def recorded(rig: Rig, recorder: Recorder) -> Rig:
     sequence's switches are implied by its observation); everything else goes through the
     recorder. Closing the returned rig closes the devices.
     """
-    clock = _RecordedClock(rig.clock)
-    return Rig(
-        clock=clock,
-        total_station=_RecordedTotalStation(rig.total_station, recorder, clock),
-        parent=_RecordedBase(rig.parent, recorder, clock),
-        children={n: _RecordedBase(b, recorder, clock) for n, b in rig.children.items()},
-        leds={n: _RecordedLeds(led, recorder) for n, led in rig.leds.items()},
-        led_sensors={n: _RecordedLedSensor(s, recorder) for n, s in rig.led_sensors.items()},
-        cameras=dict(rig.cameras),
-        timings=rig.timings,
+    clock = ClockWrapper(rig.clock)
+    return wrapped(
+        rig,
+        clock=lambda _: clock,
+        total_station=lambda d: _RecordedTotalStation(d, recorder, clock),
+        base=lambda d: _RecordedBase(d, recorder, clock),
+        leds=lambda d: _RecordedLeds(d, recorder),
+        led_sensor=lambda d: _RecordedLedSensor(d, recorder),
     )

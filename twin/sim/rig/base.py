@@ -40,6 +40,11 @@ def _inverse(a: np.ndarray) -> np.ndarray:
     return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
 
 
+def _check_pose(x: float, y: float, yaw: float) -> None:
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise ValueError(f"a pose fix must be finite, got x={x}, y={y}, yaw={yaw}")
+
+
 class _SimBase(MobileBase):
     """What both fidelities share: the name, the unreachable goals, the pose records."""
 
@@ -124,6 +129,7 @@ class RenderBase(_SimBase):
         return self._reading(self._believed())
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
+        _check_pose(x, y, yaw)
         odo = self.world.driving.odometry[self._name].pose
         self._correction = _compose(np.array([x, y, yaw], dtype=float), _inverse(odo))
 
@@ -198,6 +204,7 @@ class GeometricBase(_SimBase):
         return self._reading(self._belief)
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
+        _check_pose(x, y, yaw)
         self._belief = np.array([x, y, yaw], dtype=float)
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:
