@@ -23,38 +23,17 @@ from typing import Any
 import numpy as np
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
-from calib.io.camera_files import camera_from_dict, camera_to_dict, save_camera
+from calib.io.camera_files import camera_from_dict, save_camera
 from twin.campaign import Campaign, Progress
-from twin.campaign.log_results import META, SUMMARY, TRUTH_CAMERA, TRUTH_PARENT, results_from_log
-from twin.campaign.records import PARENT_FIX
-from twin.hal.recording import Recorder, recorded
+from twin.campaign.log_results import META, SUMMARY, results_from_log
+from twin.hal.recording import recorded
 from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.schema import Noise
-from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
+from twin.sim.rig import FIDELITIES, build_sim_rig
 from twin.sim.world import build_world
-
-
-class _TruthTap:
-    """Passes records on, and writes the parent's true pose beside each CPS fix."""
-
-    def __init__(self, inner: Recorder, sim: SimRig) -> None:
-        self.inner, self.sim = inner, sim
-
-    def record(self, topic: str, record: object, timestamp: float) -> None:
-        self.inner.record(topic, record, timestamp)
-        if topic == PARENT_FIX:
-            position, _ = self.sim.world.instrument_pose(self.sim.rig.parent.name)
-            self.inner.record(
-                TRUTH_PARENT,
-                {
-                    "index": record.index,  # type: ignore[attr-defined]
-                    "translation": self.sim.frame.points(position).tolist(),
-                },
-                timestamp,
-            )
 
 
 def run_scenario(
@@ -111,14 +90,10 @@ def run_scenario(
             0.0,
         )
         world = build_world(sc, markers=built_markers(sc))
-        sim = build_sim_rig(world, fidelity, advertised=advertised_noise)
+        sim = build_sim_rig(world, fidelity, advertised=advertised_noise, truth=log)
         try:
-            for cam in world.camera_names:
-                truth = sim.frame.camera(world.camera(cam))
-                log.record(TRUTH_CAMERA, {"name": cam, "camera": camera_to_dict(truth)}, 0.0)
-            tap = _TruthTap(log, sim)
-            rig = recorded(sim.rig, tap)
-            Campaign(rig, sc, tap, progress).run()
+            rig = recorded(sim.rig, log)
+            Campaign(rig, sc, log, progress).run()
             wall = time.perf_counter() - t0
             timings = dict(sim.rig.timings)
             if "observe" in timings:

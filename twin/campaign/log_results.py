@@ -1,7 +1,7 @@
 """A campaign's results, computed from what its log recorded.
 
 :func:`results_from_log` reads the records of a run (``/campaign/...``, and ``/truth/...``
-when a simulation wrote its truth beside them) and returns the content of
+when a simulation wrote its truth beside them, :mod:`twin.truth`) and returns the content of
 ``results.json``: every calibration with its parameters in the paper's units, the Table III
 errors (world: against the reference data sets measured from the first station; local:
 against the data taken at that station), the errors against the truth, the repeatability of
@@ -23,15 +23,12 @@ from calib.io.camera_files import camera_from_dict
 from calib.metrics import evaluate
 from calib.paper_units import kappa1_px2mm
 from twin.campaign.records import CALIBRATION, DATASET, FAILURE, PARENT_FIX, POINT, SKIPPED
+from twin.truth import TRUTH_CAMERA, TRUTH_INSTRUMENT, instrument_truth
 
 META = "/run/meta"
 """Topic of the run's description (scenario, fidelity, seed), written first."""
 SUMMARY = "/run/summary"
 """Topic of the run's wall time and timings, written last."""
-TRUTH_CAMERA = "/truth/camera"
-"""Topic of a camera's true model in W (simulation only)."""
-TRUTH_PARENT = "/truth/parent_fix"
-"""Topic of the parent's true pose at each CPS fix (simulation only)."""
 
 
 def _array(values: Any) -> NDArray[np.float64]:
@@ -156,18 +153,13 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         last_position[cam_name] = camera.position
 
     fixes = t.get(PARENT_FIX, [])
-    true_fixes = {d["index"]: d for d in t.get(TRUTH_PARENT, [])}
+    true_at_fix = instrument_truth(t.get(TRUTH_INSTRUMENT, []), [f["timestamp"] for f in fixes])
     estimated = [_array(f["translation"])[:2].tolist() for f in fixes]
-    true_track = [
-        _array(true_fixes[f["index"]]["translation"])[:2].tolist()
-        for f in fixes
-        if f["index"] in true_fixes
-    ]
+    true_track = [true[:2].tolist() for true in true_at_fix if true is not None]
     final_error = None
-    if fixes and fixes[-1]["index"] in true_fixes:
+    if fixes and true_at_fix[-1] is not None:
         est = _array(fixes[-1]["translation"])
-        true = _array(true_fixes[fixes[-1]["index"]]["translation"])
-        final_error = float(1e3 * np.linalg.norm(est - true))
+        final_error = float(1e3 * np.linalg.norm(est - true_at_fix[-1]))
     failures = Counter(f["kind"] for f in t.get(FAILURE, []))
     for s in t.get(SKIPPED, []):
         failures[f"visit_{s['reason']}"] += 1

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.campaign.log_results import TRUTH_PARENT
 from twin.campaign.records import CALIBRATION, PARENT_FIX
+from twin.truth import TRUTH_INSTRUMENT, instrument_truth
 
 
 def camera_position_covariance(
@@ -93,13 +93,13 @@ def predictions_from_log(
         messages: the log's messages in file order (``LogContents.messages``).
     """
     fix: dict[str, Any] | None = None
-    truth: dict[int, NDArray[np.float64]] = {}
+    truth: list[dict[str, Any]] = []
     out: list[CalibrationPrediction] = []
     for m in messages:
         if m.topic == PARENT_FIX:
             fix = m.data
-        elif m.topic == TRUTH_PARENT:
-            truth[int(m.data["index"])] = np.asarray(m.data["translation"], dtype=float)
+        elif m.topic == TRUTH_INSTRUMENT:
+            truth.append(m.data)
         elif m.topic == CALIBRATION and fix is not None:
             rec = m.data
             position = np.asarray(rec["camera_model"]["position_m"], dtype=float)
@@ -114,7 +114,7 @@ def predictions_from_log(
     if fix is None:
         return out, None
     est = np.asarray(fix["translation"], dtype=float)
-    true = truth.get(int(fix["index"]))
+    (true,) = instrument_truth(truth, [fix["timestamp"]])
     final = ParentFinal(
         error_m=est - true if true is not None else np.full(3, np.nan),
         covariance_m2=np.asarray(fix["covariance"], dtype=float)[1:, 1:],

@@ -15,6 +15,7 @@ ALLOWED = (
     "twin.scenario",
     "twin.campaign",
     "twin.timing",
+    "twin.truth",
 )
 FORBIDDEN = ("twin.sim", "twin.drivers", "mujoco", "twin.runner", "twin.record")
 

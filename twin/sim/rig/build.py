@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from twin.hal.devices import MobileBase
+from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.scenario.schema import Noise
 from twin.sim.capture import CameraSimulator
@@ -16,6 +17,7 @@ from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
 from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.rig.total_station import SimTotalStation
+from twin.sim.rig.truth import TruthWitness, WitnessedParent
 from twin.sim.world import World
 from twin.timing import timed
 
@@ -56,7 +58,11 @@ class SimRig:
 
 
 def build_sim_rig(
-    world: World, fidelity: str, seed: int | None = None, advertised: Noise | None = None
+    world: World,
+    fidelity: str,
+    seed: int | None = None,
+    advertised: Noise | None = None,
+    truth: Recorder | None = None,
 ) -> SimRig:
     """The devices of ``world``'s scenario at ``fidelity``.
 
@@ -70,6 +76,8 @@ def build_sim_rig(
             that runs at both fidelities with one seed share it.
         advertised: the noise the instrument reports to the campaign (default: the
             scenario's, which it simulates).
+        truth: where the simulation records its truth (:mod:`twin.truth`): the cameras and
+            the instrument at the start, the instrument at every fix of the parent's pose.
     """
     if fidelity not in FIDELITIES:
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
@@ -153,6 +161,11 @@ def build_sim_rig(
                 hidden_led_rate=faults.hidden_led_rate,
                 fault_rng=fault_led_rng,
             )
+    if truth is not None:
+        witness = TruthWitness(truth, world, frame, clock, parent)
+        witness.cameras()
+        witness.instrument()
+        bases[parent] = WitnessedParent(bases[parent], witness)
     rig = Rig(
         clock=clock,
         total_station=total_station,
