@@ -44,7 +44,9 @@ def main() -> None:
     for fidelity in ("geometric", "render"):
         for seed in args.seeds:
             with tempfile.TemporaryDirectory() as tmp:
-                res = run_scenario(HALL, tmp, fidelity=fidelity, seed=seed, report=False)
+                res = run_scenario(
+                    HALL, tmp, fidelity=fidelity, seed=seed, report=False, strategy="paper"
+                )
             t = res["timings_s"]
             walls[fidelity].append(res["wall_time_s"])
             times.add_row(

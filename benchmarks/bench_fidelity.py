@@ -50,6 +50,7 @@ def _table(fidelity: str, folder: Path | None, trials: int, workers: int, seed: 
             master_seed=seed,
             workers=workers,
             resume=resume,
+            strategy="paper",
         )
     settings = json.loads((folder / SETTINGS).read_text())
     return read_table(folder / TABLE), settings

@@ -34,7 +34,13 @@ def _rate(scenario, trials: int, workers: int, fidelity: str = "geometric") -> f
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         rows = run_montecarlo(
-            scenario, tmp, trials, fidelity=fidelity, workers=workers, master_seed=1
+            scenario,
+            tmp,
+            trials,
+            fidelity=fidelity,
+            workers=workers,
+            master_seed=1,
+            strategy="paper",
         )
         wall = time.perf_counter() - t0
     assert len({r["trial"] for r in rows}) == trials
@@ -67,7 +73,7 @@ def main() -> None:
         split.add_column(col, justify="right")
     for fidelity in ("geometric",) + (() if args.no_render else ("render",)):
         with tempfile.TemporaryDirectory() as tmp:
-            res = run_scenario(sc, tmp, fidelity=fidelity, seed=1, report=False)
+            res = run_scenario(sc, tmp, fidelity=fidelity, seed=1, report=False, strategy="paper")
         t = res["timings_s"]
         split.add_row(
             fidelity, f"{res['wall_time_s']:.2f}", *(f"{t.get(p, 0.0):.2f}" for p in PARTS)

@@ -26,13 +26,15 @@ import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo l
 from calib.io.camera_files import camera_from_dict, save_camera
 from twin.campaign import Campaign, Progress
 from twin.campaign.log_results import META, SUMMARY, results_from_log
+from twin.campaign.strategies import strategy_for
 from twin.hal.recording import recorded
+from twin.hal.rig import Rig
 from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.schema import Noise
-from twin.sim.rig import FIDELITIES, build_sim_rig
+from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
 from twin.sim.world import build_world
 
 
@@ -46,6 +48,8 @@ def run_scenario(
     progress: Callable[[Progress], None] | None = None,
     report: bool = True,
     advertised_noise: Noise | None = None,
+    strategy: str | None = None,
+    adapt_rig: Callable[[SimRig], Rig] | None = None,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
 
@@ -61,9 +65,17 @@ def run_scenario(
         advertised_noise: the noise the simulated instrument reports to the campaign
             (default: the noise it simulates); an error budget simulates one source alone
             while the campaign weighs its data as in the real run.
+        strategy: the campaign's strategy by name (default: the scenario's
+            ``campaign.strategy``); see :data:`twin.campaign.STRATEGIES`.
+        adapt_rig: given the simulated rig (its devices and its world), returns the rig the
+            campaign runs with: the devices wrapped to inject a fault, say
+            (:mod:`twin.hal.wrappers`). The recorder wraps what it returns.
 
     Returns:
         The results (also in ``results.json``).
+
+    Raises:
+        ValueError: an unknown fidelity or strategy (nothing is written).
     """
     if fidelity not in FIDELITIES:
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
@@ -72,6 +84,7 @@ def run_scenario(
         sc = sc.model_copy(update={"seed": int(seed)})
     if not noise:
         sc = sc.without_noise()
+    chosen = strategy_for(sc, strategy)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     log_path = out / "log.mcap"
@@ -85,6 +98,7 @@ def run_scenario(
                 "fidelity": fidelity,
                 "seed": sc.seed,
                 "noise": noise,
+                "strategy": chosen.name,
                 "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             },
             0.0,
@@ -92,8 +106,9 @@ def run_scenario(
         world = build_world(sc, markers=built_markers(sc))
         sim = build_sim_rig(world, fidelity, advertised=advertised_noise, truth=log)
         try:
-            rig = recorded(sim.rig, log)
-            Campaign(rig, sc, log, progress).run()
+            devices = sim.rig if adapt_rig is None else adapt_rig(sim)
+            rig = recorded(devices, log)
+            Campaign(rig, sc, log, progress, chosen).run()
             wall = time.perf_counter() - t0
             timings = dict(sim.rig.timings)
             if "observe" in timings:

@@ -22,7 +22,15 @@ from calib.camera import TsaiCamera
 from calib.io.camera_files import camera_from_dict
 from calib.metrics import evaluate
 from calib.paper_units import kappa1_px2mm
-from twin.campaign.records import CALIBRATION, DATASET, FAILURE, PARENT_FIX, POINT, SKIPPED
+from twin.campaign.records import (
+    CALIBRATION,
+    DATASET,
+    EVENT,
+    FAILURE,
+    PARENT_FIX,
+    POINT,
+    SKIPPED,
+)
 from twin.truth import TRUTH_CAMERA, TRUTH_INSTRUMENT, instrument_truth
 
 META = "/run/meta"
@@ -167,6 +175,7 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         "scenario": meta.get("scenario", ""),
         "scenario_file": meta.get("scenario_file", ""),
         "fidelity": meta.get("fidelity", ""),
+        "strategy": meta.get("strategy", ""),
         "seed": meta.get("seed"),
         "complete": summary is not None,
         "wall_time_s": None if summary is None else summary["wall_time_s"],
@@ -193,4 +202,5 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         "distance_travelled_m": fixes[-1]["distance_travelled"] if fixes else 0.0,
         "parent_track": {"estimated": estimated, "true": true_track},
         "failures": dict(sorted(failures.items())),
+        "events": dict(sorted(Counter(e["kind"] for e in t.get(EVENT, [])).items())),
     }

@@ -14,6 +14,7 @@ PARENT_FIX = "/campaign/parent_fix"
 POINT = "/campaign/point"
 CALIBRATION = "/campaign/calibration"
 FAILURE = "/campaign/failure"
+EVENT = "/campaign/event"
 SKIPPED = "/campaign/skipped_visit"
 DATASET = "/campaign/dataset"
 
@@ -109,6 +110,22 @@ class Failure:
         timestamp: s. kind: a short name (``lost_lock``, ``point_skipped``...).
         message: words. robot, camera: concerned ("" if none).
         details: plain values.
+    """
+
+    timestamp: float
+    kind: str
+    message: str = ""
+    robot: str = ""
+    camera: str = ""
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CampaignEvent:
+    """Something the campaign did that is not a fault: a child turned to show its prisms,
+    the parent stepped aside to see the children, a prism aimed at again from the others.
+
+    Attributes: as :class:`Failure`.
     """
 
     timestamp: float

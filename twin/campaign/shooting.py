@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,8 +37,15 @@ MAX_AIM_CORRECTION = 0.1
 """Largest correction of a cube's predicted position by the cubes already measured, m:
 beyond it the earlier shot is taken to have locked another prism (they are 0.3 m apart)."""
 
-FailureSink = Callable[[str, str, dict], None]
-"""``(kind, message, details)``: where a failure is reported."""
+
+class ShotReport(Protocol):
+    """Where the shots' failures (a lost lock, a prism missing) and events (a prism aimed at
+    again from the others, a search) are reported: ``(kind, message, details)``."""
+
+    def failure(self, kind: str, message: str, details: dict[str, Any]) -> None: ...
+
+    def event(self, kind: str, message: str, details: dict[str, Any]) -> None: ...
+
 
 RETRIED = (NoPrismInConeError, LineOfSightBlockedError)
 """Failures worth another aim; others (out of range, tilt) are not."""
@@ -78,7 +85,7 @@ centimetres of the parent's position error would turn its bearing too much."""
 
 
 def _shoot(
-    station: TotalStation, aim: NDArray[np.float64], retries: int, report: FailureSink, k: int
+    station: TotalStation, aim: NDArray[np.float64], retries: int, report: ShotReport, k: int
 ) -> TotalStationMeasurement | None:
     """One shot aimed at ``aim``, retried after a lost lock with aims swept around it."""
     for attempt in range(retries + 1):
@@ -88,11 +95,11 @@ def _shoot(
             return station.measure()
         except RETRIED as exc:
             kind = "lost_lock" if isinstance(exc, NoPrismInConeError) else "line_of_sight"
-            report(kind, str(exc), {"cube": k, "attempt": attempt})
+            report.failure(kind, str(exc), {"cube": k, "attempt": attempt})
         except InstrumentError as exc:
-            report(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
+            report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
             return None
-    report("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
+    report.failure("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
     return None
 
 
@@ -205,7 +212,7 @@ def shoot_cubes(
     station: TotalStation,
     predicted: NDArray[np.float64],
     retries: int,
-    report: FailureSink,
+    report: ShotReport,
     cubes_body: NDArray[np.float64] | None = None,
 ) -> list[TotalStationMeasurement] | None:
     """Shots at the three cubes, labelled cube 0, 1, 2, or None when one could not be had.
@@ -219,7 +226,7 @@ def shoot_cubes(
     Args:
         station: the instrument. predicted: (3, 3) cube predictions, levelled frame, m.
         retries: further aims allowed per cube after a lost lock.
-        report: receives each failure.
+        report: receives each failure and event.
         cubes_body: (3, 3) the assembly's cubes in its body frame (default: labels are
             the aims, as with a perfect prediction).
     """
@@ -240,7 +247,7 @@ def shoot_cubes(
         # The child is not where it was thought to be (its odometry drifted): search.
         centre = predicted.mean(axis=0)
         for degrees in SEARCH_DEG:
-            report("prism_search", f"searching {degrees:+.0f} deg from the prediction", {})
+            report.event("prism_search", f"searching {degrees:+.0f} deg from the prediction", {})
             add(_shoot(station, _swept(centre, degrees), 0, report, 0))
             if shots:
                 break
@@ -256,7 +263,7 @@ def shoot_cubes(
             tries.append(_third_cube(points, labels[::-1], cubes_body))
             tries.sort(key=lambda t: float(np.linalg.norm(t[1] - predicted[t[0]])))
             for missing, aim in tries:
-                report("prism_reaimed", f"aiming at cube {missing} from the other two", {})
+                report.event("prism_reaimed", f"aiming at cube {missing} from the other two", {})
                 add(_shoot(station, aim, 0, report, missing))
                 if len(shots) == 3:
                     break
@@ -267,14 +274,14 @@ def shoot_cubes(
             guesses = np.argsort(np.linalg.norm(predicted - points[0], axis=1))
             for k in guesses:
                 turned = _turned_onto(predicted, int(k), points[0])
-                report("prism_reaimed", f"aiming at the others as if cube {k} was locked", {})
+                report.event("prism_reaimed", f"aiming at the others as if cube {k} was locked", {})
                 for j in range(len(predicted)):
                     if j != k and len(shots) < 2:
                         add(_shoot(station, turned[j], 0, report, j))
                 if len(shots) >= 2:
                     break
     if len(shots) != 3:
-        report("prism_missing", f"measured {len(shots)} distinct prisms of 3", {})
+        report.failure("prism_missing", f"measured {len(shots)} distinct prisms of 3", {})
         return None
     points = np.array([s.to_cartesian() for s in shots])
     labels, _misfit = _pair_labels(points, cubes_body)
@@ -290,7 +297,7 @@ def measure_child(
     marker: MarkerAssembly,
     floor_z: float,
     retries: int,
-    report: FailureSink,
+    report: ShotReport,
     false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
 ) -> ChildObservation | None:
     """The child's observation (reference point, marker pose) from three shots, or None.
@@ -307,7 +314,7 @@ def measure_child(
         try:
             return observe_child(child, shots, station.spec, station.inclinometer, marker=marker)
         except InconsistentMarkerError as exc:
-            report("inconsistent_marker", str(exc), {"attempt": attempt})
+            report.failure("inconsistent_marker", str(exc), {"attempt": attempt})
             measured = np.array([s.to_cartesian() for s in shots])
             shift = np.median(measured - predicted, axis=0)
             if np.linalg.norm(shift) <= MAX_AIM_CORRECTION:

@@ -15,6 +15,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from twin.campaign.strategies import STRATEGIES
 from twin.cli.scene import load_or_report
 
 
@@ -52,6 +53,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--ray-address", help="address of an existing Ray cluster (default: start one here)"
     )
     p.add_argument("--seed", type=int, help="master seed (default: the scenario's)")
+    p.add_argument(
+        "--strategy",
+        choices=sorted(STRATEGIES),
+        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
+        "(default: the scenario's campaign.strategy, itself paper by default)",
+    )
     p.add_argument(
         "--no-budget",
         action="store_true",
@@ -115,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
                 ray_address=args.ray_address,
                 resume=args.resume,
                 progress=show,
+                strategy=args.strategy,
             )
         except TrialFailed as exc:
             console.print(f"[red]error:[/red] {exc}", highlight=False)

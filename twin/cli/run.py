@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
+from twin.campaign.strategies import STRATEGIES, strategy_for
 from twin.cli.scene import load_or_report
 
 
@@ -34,6 +35,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "geometric: robots placed with a stopping error, LEDs projected with detection noise",
     )
     p.add_argument("--seed", type=int, help="root seed of the run (default: the scenario's)")
+    p.add_argument(
+        "--strategy",
+        choices=sorted(STRATEGIES),
+        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
+        "(default: the scenario's campaign.strategy, itself paper by default)",
+    )
     p.add_argument("--out", type=Path, help="output folder (default: out/SCENARIO-FIDELITY)")
     p.add_argument("--no-noise", action="store_true", help="switch every noise source off")
     p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
@@ -69,8 +76,16 @@ def run(args: argparse.Namespace) -> int:
         return 2
     from twin.runner import run_scenario
 
+    try:
+        strategy = strategy_for(sc, args.strategy).name
+    except ValueError as exc:
+        console.print(f"[red]error:[/red] {exc}", highlight=False)
+        return 2
     out = args.out or Path("out") / f"{sc.name}-{args.fidelity}"
-    console.print(f"running [bold]{sc.name}[/bold] at the {args.fidelity} fidelity into {out}")
+    console.print(
+        f"running [bold]{sc.name}[/bold] at the {args.fidelity} fidelity with the {strategy} "
+        f"strategy into {out}"
+    )
     with Live(console=console, refresh_per_second=4, transient=True) as live:
         results = run_scenario(
             sc,
@@ -80,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
             noise=not args.no_noise,
             progress=_Display(live),
             report=not args.no_report,
+            strategy=strategy,
         )
     print_results(results, console)
     if not args.no_report:
@@ -89,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
 
 def print_results(results: dict, console: Console) -> None:
     """The calibrations as a Table III-like table, and the failures."""
-    table = Table(title=f"{results['scenario']} ({results['fidelity']}, seed {results['seed']})")
+    how = f"{results['fidelity']}, {results.get('strategy') or 'paper'} strategy"
+    table = Table(title=f"{results['scenario']} ({how}, seed {results['seed']})")
     for col in ("camera", "visit", "travel [m]", "points"):
         table.add_column(col, justify="right")
     for col in ("world px", "world 3D [mm]", "local px", "local 3D [mm]", "position err [mm]"):
@@ -112,6 +129,8 @@ def print_results(results: dict, console: Console) -> None:
         console.print(f"skipped {s['camera']} visit {s['visit']}: {s['reason']} ({s['message']})")
     if results["failures"]:
         console.print("failures: " + ", ".join(f"{k} {v}" for k, v in results["failures"].items()))
+    if results.get("events"):
+        console.print("events: " + ", ".join(f"{k} {v}" for k, v in results["events"].items()))
     if results["parent_final_error_mm"] is not None:
         console.print(
             f"parent travelled {results['distance_travelled_m']:.1f} m; final position error "

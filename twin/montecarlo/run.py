@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from twin.campaign.strategies import strategy_for
 from twin.montecarlo.engines import make_engine
 from twin.montecarlo.seeds import trial_seed
 from twin.montecarlo.sources import configurations
@@ -45,12 +46,15 @@ def scenario_digest(scenario: Scenario) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _settings(scenario: Scenario, fidelity: str, master_seed: int, configs: tuple) -> dict:
+def _settings(
+    scenario: Scenario, fidelity: str, strategy: str, master_seed: int, configs: tuple
+) -> dict:
     return {
         "scenario": scenario.name,
         "scenario_file": scenario.source,
         "scenario_digest": scenario_digest(scenario),
         "fidelity": fidelity,
+        "strategy": strategy,
         "master_seed": master_seed,
         "configurations": list(configs),
     }
@@ -60,7 +64,9 @@ def _check_resume(path: Path, settings: dict[str, Any]) -> None:
     if not path.exists():
         raise FileNotFoundError(f"{path.parent}: no run to resume (no {SETTINGS})")
     old = json.loads(path.read_text())
-    for key in ("scenario_digest", "fidelity", "master_seed", "configurations"):
+    # Runs made before strategies had names made the paper's decisions.
+    old.setdefault("strategy", "paper")
+    for key in ("scenario_digest", "fidelity", "strategy", "master_seed", "configurations"):
         if old.get(key) != settings[key]:
             raise ValueError(
                 f"{path.parent}: cannot resume: the run there has {key} = {old.get(key)!r}, "
@@ -82,6 +88,7 @@ def run_montecarlo(
     resume: bool = False,
     progress: Callable[[McProgress], None] | None = None,
     trial_fn: Callable[[TrialSpec], Any] = run_trial,
+    strategy: str | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
 
@@ -98,20 +105,23 @@ def run_montecarlo(
             configurations), running only the trials its table lacks.
         progress: called after each finished trial.
         trial_fn: what runs one trial (a picklable function; tests replace it).
+        strategy: the campaign's strategy by name (default: the scenario's
+            ``campaign.strategy``).
 
     Raises:
-        ValueError: for bad counts, a run in ``out_dir`` without ``resume``, or settings
-            that differ from the run being resumed.
+        ValueError: for bad counts, an unknown strategy, a run in ``out_dir`` without
+            ``resume``, or settings that differ from the run being resumed.
     """
     if trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
     if fidelity not in ("geometric", "render"):
         raise ValueError(f"fidelity must be geometric or render, got {fidelity!r}")
     seed = scenario.seed if master_seed is None else int(master_seed)
+    strategy_name = strategy_named_in(scenario, strategy)
     configs = configurations(budget)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    settings = _settings(scenario, fidelity, seed, configs)
+    settings = _settings(scenario, fidelity, strategy_name, seed, configs)
     settings_path, table_path = out / SETTINGS, out / TABLE
     if resume:
         _check_resume(settings_path, settings)
@@ -123,7 +133,7 @@ def run_montecarlo(
         settings_path.write_text(json.dumps(settings, indent=2) + "\n")
         rows_per_trial = len(planned_visits(scenario))
         specs = [
-            TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity)
+            TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity, strategy_name)
             for config in configs
             for i in range(trials)
         ]
@@ -146,6 +156,15 @@ def run_montecarlo(
     settings["wall_time_s"] = elapsed
     write_outputs(rows, settings, out)
     return rows
+
+
+def strategy_named_in(scenario: Scenario, name: str | None) -> str:
+    """The strategy's name a run uses: ``name``, else the scenario's; checked to exist.
+
+    Raises:
+        ValueError: no strategy has that name.
+    """
+    return strategy_for(scenario, name).name
 
 
 def _finite_or_null(value: Any) -> Any:

@@ -58,6 +58,7 @@ class TrialSpec:
         config: ``all`` or the noise source that alone is simulated.
         trial: 0-based index. seed: the trial's root seed.
         fidelity: ``geometric`` or ``render``.
+        strategy: the campaign's strategy, by name.
     """
 
     scenario: Scenario
@@ -65,6 +66,7 @@ class TrialSpec:
     trial: int
     seed: int
     fidelity: str
+    strategy: str = "paper"
 
 
 class TrialFailed(RuntimeError):
@@ -96,13 +98,16 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 seed=spec.seed,
                 report=False,
                 advertised_noise=spec.scenario.noise,
+                strategy=spec.strategy,
             )
         except Exception as exc:
             alone = "" if spec.config == "all" else f" (with {spec.config} noise alone)"
+            source = spec.scenario.source or "SCENARIO"
             raise TrialFailed(
                 f"trial {spec.trial} of {spec.config!r} (seed {spec.seed}) failed: "
                 f"{type(exc).__name__}: {exc}. It runs alone{alone} with: twin run "
-                f"SCENARIO --fidelity {spec.fidelity} --seed {spec.seed}"
+                f"{source} --fidelity {spec.fidelity} --seed {spec.seed} "
+                f"--strategy {spec.strategy}"
             ) from exc
         predictions, final = predictions_from_log(read_log(f"{tmp}/log.mcap").messages)
     rows = trial_rows(spec, results, predictions, final)

@@ -24,21 +24,19 @@ import numpy as np
 
 from twin.scenario.errors import ScenarioIssue
 from twin.scenario.geometry import (
-    floor_view,
     inside_obstacle,
     inside_space,
     polyline_points,
     rectangle_corners,
     rectangles_gap,
-    segment_blocked,
 )
-from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX, PLATFORMS
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PLATFORMS
 from twin.scenario.schema import Scenario
+from twin.scenario.visibility import station_visibility
 
 # Clearance kept between a robot's centre and walls or obstacles, m: its footprint's
 # enclosing radius.
 PARENT_CLEARANCE = PIONEER3AT.radius
-CHILD_CLEARANCE = PIONEER3DX.radius
 
 # Geom names the scene builder (twin.sim.hall) gives the space itself; an obstacle or floor
 # patch may not take them, nor any name starting with ``wall_``.
@@ -374,31 +372,21 @@ def _check_route(sc: Scenario) -> list[ScenarioIssue]:
     return issues
 
 
-def station_visibility(sc: Scenario, camera_name: str, station: tuple[float, float]) -> float:
-    """Fraction of a camera's reachable floor view whose corner cubes the total station
-    sees from ``station`` (line of sight clear of obstacles, slope distance in range).
-
-    The view is sampled on a grid over the image; samples in obstacles or closer than a
-    child's radius to a wall are not counted. Returns 0 when the camera sees no such floor.
-    """
-    cam = sc.camera(camera_name).tsai()
-    floor = floor_view(cam, sc.space.floor_z, max_range=60.0)
-    if len(floor) == 0:
-        return 0.0
-    ok = inside_space(sc.space, floor[:, :2], CHILD_CLEARANCE)
-    for ob in sc.space.obstacles:
-        ok &= ~inside_obstacle(ob, floor[:, :2], CHILD_CLEARANCE)
-    floor = floor[ok]
-    if len(floor) == 0:
-        return 0.0
-    cube_height = float(np.mean([c[2] for c in sc.marker.cubes]))
-    targets = floor + np.array([0.0, 0.0, cube_height])
-    inst = np.array([station[0], station[1], sc.space.floor_z + INSTRUMENT_HEIGHT])
-    dist = np.linalg.norm(targets - inst, axis=1)
+def scenario_station_visibility(
+    sc: Scenario, camera_name: str, station: tuple[float, float]
+) -> float:
+    """:func:`twin.scenario.visibility.station_visibility` of a scenario's camera from
+    ``station``, with the scenario's own instrument (its range) and marker (the prisms'
+    mean height)."""
     ts = sc.noise.total_station
-    in_range = (dist >= ts.range_min) & (dist <= ts.range_max)
-    clear = ~segment_blocked(sc.space, np.broadcast_to(inst, targets.shape), targets)
-    return float(np.mean(in_range & clear))
+    return station_visibility(
+        sc.space,
+        sc.camera(camera_name).tsai(),
+        station,
+        sc.space.floor_z + INSTRUMENT_HEIGHT,
+        float(np.mean([c[2] for c in sc.marker.cubes])),
+        (ts.range_min, ts.range_max),
+    )
 
 
 def _check_visits(sc: Scenario) -> list[ScenarioIssue]:
@@ -420,7 +408,7 @@ def _check_visits(sc: Scenario) -> list[ScenarioIssue]:
         if issue:
             issues.append(issue)
             continue
-        frac = station_visibility(sc, visit.camera, visit.station)
+        frac = scenario_station_visibility(sc, visit.camera, visit.station)
         need = sc.calibration.min_visible_fraction
         if frac < need:
             issues.append(

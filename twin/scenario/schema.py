@@ -551,6 +551,9 @@ class CampaignSettings(Frozen):
             ``one_at_a_time`` (6 frames).
         lock_retries: further aims after a lost prism lock before a shot is given up.
         pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2.
+        strategy: the campaign's decisions (visits, legs, data stops) by name:
+            ``paper`` (the paper's; the default for now). ``twin run --strategy`` overrides
+            it.
     """
 
     reference_cameras: tuple[Name, ...] | None = None
@@ -561,6 +564,7 @@ class CampaignSettings(Frozen):
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
     pixel_size_mm: Annotated[float, Field(gt=0.0, le=0.1)] = 0.015
+    strategy: Name = "paper"
 
 
 class Faults(Frozen):

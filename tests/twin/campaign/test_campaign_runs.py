@@ -54,7 +54,9 @@ def test_smoke_runs_end_to_end(tmp_path, fidelity):
 
 
 def test_without_noise_every_camera_is_recovered_exactly(tmp_path):
-    results = run_scenario(HALL, tmp_path, fidelity="geometric", noise=False, report=False)
+    results = run_scenario(
+        HALL, tmp_path, fidelity="geometric", noise=False, report=False, strategy="paper"
+    )
     assert [(c["camera"], c["visit"]) for c in results["calibrations"]] == [
         ("cam1", 1),
         ("cam2", 1),
@@ -101,6 +103,7 @@ def test_faults_are_counted_and_the_run_finishes(tmp_path):
 def test_a_killed_run_keeps_what_it_measured(tmp_path):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "twin.cli", "run", str(HALL), "--fidelity", "geometric"]
+    cmd += ["--strategy", "paper"]
     proc = subprocess.Popen(
         [*cmd, "--out", str(out), "--no-report"],
         stdout=subprocess.DEVNULL,
@@ -146,7 +149,12 @@ def test_world_errors_grow_with_travel_and_local_errors_do_not(tmp_path):
     first, last, local = [], [], []
     for seed in (1, 2, 3):
         res = run_scenario(
-            HALL, tmp_path / str(seed), fidelity="geometric", seed=seed, report=False
+            HALL,
+            tmp_path / str(seed),
+            fidelity="geometric",
+            seed=seed,
+            report=False,
+            strategy="paper",
         )
         cal = {(c["camera"], c["visit"]): c for c in res["calibrations"]}
         first.append(cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"])

@@ -8,14 +8,13 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from twin.campaign.procedure import Campaign
 from twin.campaign.shooting import STILL_NOISE_FREE, moved_between
+from twin.hal.wrappers import MobileBaseWrapper, wrapped
 from twin.instruments.consistency import chi2_threshold
 from twin.localization.observation import ChildObservation
 from twin.report.reading import planned_visits
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
-from twin.sim.rig.base import GeometricBase
 
 ROOT = Path(__file__).resolve().parents[3]
 HALL = ROOT / "scenarios" / "paper_hall.toml"
@@ -58,31 +57,70 @@ moved in the render fidelity before the robots held their wheels at rest."""
 PUSH_YAW_DEG = 1.5
 
 
-def test_a_child_pushed_while_the_other_drives_is_placed_again(tmp_path, monkeypatch):
-    legs: list[list[str]] = []
-    move = Campaign._move_children
+class Pusher:
+    """Watches the bases' drives, as a wrapper device sees them: a CPS leg's children drive
+    one after the other after the parent's last drive. On the third leg, while the second
+    child drives, the first (already placed) is pushed in the world."""
 
-    def recording_move(self, stops, direction):
-        legs.append(self._children_in_order(direction))
-        return move(self, stops, direction)
+    def __init__(self, sim) -> None:
+        self.sim = sim
+        self.legs = 0
+        self.drivers: list[str] = []
+        self.pushed: list[str] = []
+        self.parent = sim.rig.parent.name
 
-    drive = GeometricBase.drive_to
-    pushed: list[str] = []
+    def before_drive(self, robot: str) -> None:
+        if robot == self.parent:
+            self.drivers = []
+            return
+        if not self.drivers:
+            self.legs += 1  # the first child's drive after the parent's: a new leg
+        if robot not in self.drivers:
+            self.drivers.append(robot)
+        if self.legs == 3 and len(self.drivers) == 2 and not self.pushed:
+            first = self.drivers[0]
+            world = self.sim.world
+            x, y, yaw = world.robot_pose(first)
+            world.place(first, (x + PUSH[0], y + PUSH[1]), yaw + math.radians(PUSH_YAW_DEG))
+            self.pushed.append(first)
 
-    def pushing_drive(self, goal_xy, goal_yaw=None):
-        # On the third leg, while the second child drives, push the first (placed) one.
-        if len(legs) == 3 and not pushed and self.name == legs[-1][1]:
-            first = legs[-1][0]
-            x, y, yaw = self.world.robot_pose(first)
-            self.world.place(first, (x + PUSH[0], y + PUSH[1]), yaw + math.radians(PUSH_YAW_DEG))
-            pushed.append(first)
-        return drive(self, goal_xy, goal_yaw)
 
-    monkeypatch.setattr(Campaign, "_move_children", recording_move)
-    monkeypatch.setattr(GeometricBase, "drive_to", pushing_drive)
-    results = run_scenario(HALL, tmp_path, fidelity="geometric", seed=2, report=False)
-    assert pushed, "no third leg"
+class WatchedBase(MobileBaseWrapper):
+    def __init__(self, inner, pusher: Pusher) -> None:
+        super().__init__(inner)
+        self.pusher = pusher
+
+    def drive_to(self, goal_xy, goal_yaw=None):
+        self.pusher.before_drive(self.name)
+        return self.inner.drive_to(goal_xy, goal_yaw)
+
+
+def test_a_child_pushed_while_the_other_drives_is_placed_again(tmp_path):
+    pushers: list[Pusher] = []
+
+    def push_on_the_third_leg(sim):
+        pushers.append(Pusher(sim))
+        return wrapped(sim.rig, base=lambda base: WatchedBase(base, pushers[0]))
+
+    results = run_scenario(
+        HALL,
+        tmp_path,
+        fidelity="geometric",
+        seed=2,
+        report=False,
+        strategy="paper",
+        adapt_rig=push_on_the_third_leg,
+    )
+    assert pushers[0].pushed, "no third leg"
     assert results["failures"].get("child_moved", 0) >= 1
     assert results["failures"].get("inconsistent_children", 0) == 0
     planned = [key for key, _ in planned_visits(load_scenario(HALL))]
     assert [(c["camera"], c["visit"]) for c in results["calibrations"]] == planned
+
+
+def test_without_the_push_no_child_moved(tmp_path):
+    # The same run without the push: the check shots find nothing to place again.
+    results = run_scenario(
+        HALL, tmp_path, fidelity="geometric", seed=2, report=False, strategy="paper"
+    )
+    assert results["failures"].get("child_moved", 0) == 0

@@ -36,7 +36,12 @@ finds in rendered images) and the robots' stops, centimetres apart: measured at 
 def runs(tmp_path_factory):
     return {
         fidelity: run_scenario(
-            HALL, tmp_path_factory.mktemp(fidelity), fidelity=fidelity, seed=SEED, report=False
+            HALL,
+            tmp_path_factory.mktemp(fidelity),
+            fidelity=fidelity,
+            seed=SEED,
+            report=False,
+            strategy="paper",
         )
         for fidelity in ("geometric", "render")
     }

@@ -12,11 +12,11 @@ from hypothesis import strategies as st
 
 from calib.rotation import rot_z, wrap_angle
 from twin.campaign.shooting import MIN_ORIENTING_RANGE, oriented_on, same_marker
+from twin.hal.wrappers import MobileBaseWrapper, wrapped
 from twin.localization.pose import ParentPose
 from twin.report.reading import planned_visits
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
-from twin.sim.rig.base import GeometricBase
 
 ROOT = Path(__file__).resolve().parents[3]
 HALL = ROOT / "scenarios" / "paper_hall.toml"
@@ -60,21 +60,42 @@ def test_one_marker_measured_twice_is_told_from_two_children():
     assert not same_marker(a, a + np.array([0.0, 0.5, 0.0]))
 
 
-def test_a_parent_turned_far_off_its_belief_still_fixes_its_pose(tmp_path, monkeypatch):
-    drive = GeometricBase.drive_to
-    turned = []
+class ScrubbingParent(MobileBaseWrapper):
+    """The parent's base: after a turn to face north (camera 3's station), its true heading
+    is knocked off its belief, as a skid-steered robot's scrubbing wheels do."""
 
-    def scrubbing_turn(self, goal_xy, goal_yaw=None):
-        result = drive(self, goal_xy, goal_yaw)
-        if self.name == "parent" and goal_yaw is not None and abs(goal_yaw - math.pi / 2) < 0.1:
-            x, y, yaw = self.world.robot_pose("parent")
-            self.world.place("parent", (x, y), yaw + math.radians(HEADING_ERROR_DEG))
-            turned.append(self.clock.now())
+    def __init__(self, inner, sim) -> None:
+        super().__init__(inner)
+        self.sim = sim
+        self.turned: list[float] = []
+
+    def drive_to(self, goal_xy, goal_yaw=None):
+        result = self.inner.drive_to(goal_xy, goal_yaw)
+        if goal_yaw is not None and abs(goal_yaw - math.pi / 2) < 0.1:
+            world = self.sim.world
+            x, y, yaw = world.robot_pose(self.name)
+            world.place(self.name, (x, y), yaw + math.radians(HEADING_ERROR_DEG))
+            self.turned.append(result.timestamp)
         return result
 
-    monkeypatch.setattr(GeometricBase, "drive_to", scrubbing_turn)
-    results = run_scenario(HALL, tmp_path, fidelity="geometric", seed=3, report=False)
-    assert turned, "the parent never turned at camera 3's station"
+
+def test_a_parent_turned_far_off_its_belief_still_fixes_its_pose(tmp_path):
+    parents: list[ScrubbingParent] = []
+
+    def scrub_the_parent(sim):
+        parents.append(ScrubbingParent(sim.rig.parent, sim))
+        return wrapped(sim.rig, base=lambda base: parents[0] if base is sim.rig.parent else base)
+
+    results = run_scenario(
+        HALL,
+        tmp_path,
+        fidelity="geometric",
+        seed=3,
+        report=False,
+        strategy="paper",
+        adapt_rig=scrub_the_parent,
+    )
+    assert parents[0].turned, "the parent never turned at camera 3's station"
     assert results["complete"]
     planned = [key for key, _ in planned_visits(load_scenario(HALL))]
     assert [(c["camera"], c["visit"]) for c in results["calibrations"]] == planned

@@ -98,6 +98,7 @@ def run_case(case: Case, out_dir: Path) -> dict[str, Any]:
         seed=case.seed,
         noise=case.noise,
         report=False,
+        strategy="paper",
     )
     return json.loads(json.dumps(results, allow_nan=False))
 

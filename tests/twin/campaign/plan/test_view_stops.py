@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.campaign.geometry import body_points
-from twin.campaign.plan import (
+from twin.campaign.plan.clearance import body_points
+from twin.campaign.plan.view_stops import (
     _farthest_first,
     _leds_in_image,
     _leds_seen,
@@ -21,7 +21,9 @@ from twin.campaign.plan import (
 from twin.scenario import load_scenario
 from twin.scenario.geometry import floor_view
 
-HALL = Path(__file__).resolve().parents[3] / "scenarios" / "paper_hall.toml"
+HALL = Path(__file__).resolve().parents[4] / "scenarios" / "paper_hall.toml"
+RANGE = (1.3, 2200.0)
+"""The instrument's range (Table I), m."""
 
 
 @pytest.fixture(scope="module")
@@ -50,15 +52,16 @@ def test_candidate_tests_in_a_batch_are_each_alone(hall, name):
     parent, anchor = ground.mean(axis=0), 0.5 * (ground.mean(axis=0) + ground[0])
     inst = np.array([parent[0], parent[1], 0.0])
     kept, pixels = _leds_in_image(camera, leds)
-    seen = _leds_seen(hall, camera.position, leds, parent, anchor)
-    reachable = _prisms_seen(hall, inst, cubes, anchor)
+    seen = _leds_seen(hall.space, camera.position, leds, parent, anchor)
+    reachable = _prisms_seen(hall.space, RANGE, inst, cubes, anchor)
     for i in range(len(leds)):
         alone, alone_pixels = _leds_in_image(camera, leds[i : i + 1])
         assert (i in kept) == (alone.size == 1)
         if alone.size:
             np.testing.assert_allclose(pixels[i], alone_pixels[0], rtol=1e-12)
-        assert seen[i] == _leds_seen(hall, camera.position, leds[i : i + 1], parent, anchor)[0]
-        assert reachable[i] == _prisms_seen(hall, inst, cubes[i : i + 1], anchor)[0]
+        one = slice(i, i + 1)
+        assert seen[i] == _leds_seen(hall.space, camera.position, leds[one], parent, anchor)[0]
+        assert reachable[i] == _prisms_seen(hall.space, RANGE, inst, cubes[one], anchor)[0]
     # Every test both keeps and drops some of these candidates.
     assert 0 < kept.size < len(leds)
     assert 0 < seen.sum() < len(leds)
@@ -67,7 +70,7 @@ def test_candidate_tests_in_a_batch_are_each_alone(hall, name):
 
 def test_view_stops_show_their_leds_and_prisms(hall):
     camera = hall.camera("cam1").tsai()
-    stops = view_stops(hall, camera, [0.0, 0.0], 0.0, [2.0, 1.5])
+    stops = view_stops(hall.space, hall.marker.assembly(), RANGE, camera, [0, 0], 0.0, [2, 1.5])
     assert len(stops) > 20
     w, h = camera.image_size
     for s in stops[:20]:
@@ -98,31 +101,3 @@ def test_farthest_first_order(n, seed):
     order = _farthest_first(feats, start)
     assert order == _farthest_first_reference(feats, start)
     assert sorted(order) == list(range(n))
-
-
-def test_the_child_that_waits_does_not_hide_the_one_measured_first(hall):
-    # On the way east past the island: the parent at s = 26.3 m, the next station 4.6 m on.
-    from twin.campaign.geometry import child_profile, passes_near
-    from twin.campaign.plan import formation
-    from twin.campaign.route import RoutePath
-
-    path = RoutePath(hall.route.waypoints)
-    here, s_next = np.array([26.26, 0.0]), 30.84
-    there = path.at(s_next)
-    z, floor = 0.0, hall.space.floor_z
-    cubes = np.asarray(hall.marker.cubes, dtype=float)
-    free_stops = formation(hall, path, s_next, here, there, 1.0, hall.campaign.formation, z)
-    assert free_stops is not None
-    # A child waiting right on the line of sight to where the far child would stop.
-    far = free_stops[0]
-    waiting = here + 0.3 * (np.asarray(far.xy) - here)
-    stops = formation(
-        hall, path, s_next, here, there, 1.0, hall.campaign.formation, z, waiting_xy=waiting
-    )
-    assert stops is not None
-    assert not np.allclose(stops[0].xy, far.xy)
-    inst = np.array([here[0], here[1], z])
-    prisms = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
-    assert not passes_near(inst, prisms, waiting, child_profile(floor)).any()
-    blocked = body_points(far.xy, far.yaw, cubes, floor)[0]
-    assert passes_near(inst, blocked, waiting, child_profile(floor)).any()

@@ -1,5 +1,6 @@
-"""Planning geometry in batches: the batch tests give, item for item, what the tests of one
-item give (and the pruned prism test what testing every point of every line gives)."""
+"""Prisms hidden by their own assembly, in batches: the batch tests give, item for item,
+what the tests of one item give (and the pruned prism test what testing every point of
+every line gives)."""
 
 from __future__ import annotations
 
@@ -8,12 +9,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from twin.campaign.geometry import (
+from twin.campaign.plan.clearance import body_points
+from twin.campaign.plan.occlusion import (
     ARM_RADIUS,
     MAST_RADIUS,
     OWN_HOUSING,
     PRISM_RADIUS,
-    body_points,
     prisms_hidden,
     prisms_hidden_many,
     segments_distance,

@@ -1,0 +1,44 @@
+"""``twin run`` and ``twin montecarlo`` take the campaign's strategy by name, and refuse one
+they do not know before writing anything."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from twin.cli import main
+
+ROOT = Path(__file__).resolve().parents[3]
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+
+
+@pytest.mark.parametrize("command", ["run", "montecarlo"])
+def test_an_unknown_strategy_on_the_command_line_is_refused(command, tmp_path, capsys):
+    extra = ["--trials", "1"] if command == "montecarlo" else []
+    with pytest.raises(SystemExit) as exit_:
+        main([command, str(SMOKE), *extra, "--strategy", "bold", "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2
+    assert "invalid choice: 'bold'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "montecarlo"])
+def test_an_unknown_strategy_in_the_scenario_is_refused(command, tmp_path, capsys):
+    text = SMOKE.read_text().replace("[route]", '[campaign]\nstrategy = "bold"\n\n[route]')
+    scenario = tmp_path / "bold.toml"
+    scenario.write_text(text)
+    extra = ["--trials", "1"] if command == "montecarlo" else []
+    assert main([command, str(scenario), *extra, "--out", str(tmp_path / "o")]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"campaign.strategy in {scenario}: unknown strategy 'bold'; strategies: paper" in said
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_strategy_is_in_the_results(tmp_path):
+    out = tmp_path / "run"
+    args = ["run", str(SMOKE), "--fidelity", "geometric", "--strategy", "paper", "--no-report"]
+    assert main([*args, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["strategy"] == "paper"

@@ -1,0 +1,230 @@
+"""The paper's strategy (Section IV): the scenario's route and visits in order, the group
+leapfrogging along the route in equal legs with the children staggered ahead of the
+parent, and a child's data at stops spread over each camera's view.
+
+- reference data sets: the cameras named by ``campaign.reference_cameras``, else every
+  camera whose floor view the first station sees (``calibration.min_visible_fraction``);
+- visits: ``calibration.visits``, in order;
+- legs: along the route in equal steps of at most ``campaign.formation.step``; the
+  children stand ahead of the parent's next station (:func:`twin.campaign.plan.formation.
+  formation`), the one farther ahead moving first; where there is no room for them, a
+  leg half as long, down to 30 % of a step;
+- data: the child nearer the camera's view takes it at the first stops of
+  :func:`twin.campaign.plan.view_stops.view_stops`, in a nearest-neighbour tour, the
+  later ones spare; at each stop it turns where its own assembly would hide a prism.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from twin.campaign.plan.formation import formation
+from twin.campaign.plan.legs import leg_goals
+from twin.campaign.plan.occlusion import unhidden_yaw
+from twin.campaign.plan.route import RoutePath
+from twin.campaign.plan.view_stops import tour, view_stops
+from twin.campaign.strategy import (
+    CampaignView,
+    Leg,
+    Move,
+    NoLeg,
+    Return,
+    Stop,
+    StopPlan,
+    Strategy,
+    Visit,
+)
+from twin.scenario.geometry import floor_view
+from twin.scenario.robots import INSTRUMENT_HEIGHT
+from twin.scenario.visibility import station_visibility
+
+ARRIVED = 0.05
+"""A parent this close to a station, m, is there: no leg is needed."""
+
+SHORTEST_LEG = 0.3
+"""Legs are halved for lack of room down to this fraction of a step."""
+
+MAX_TURN_AT_STOP_DEG = 50.0
+"""Farthest a child turns at a data stop to show its prisms, deg."""
+
+
+class PaperStrategy(Strategy):
+    """The paper's decisions (see the module). One instance serves one campaign."""
+
+    name = "paper"
+
+    def start(self, view: CampaignView) -> None:
+        sc = view.scenario
+        self.path = RoutePath(sc.route.waypoints)
+        self.marker = sc.marker.assembly()
+        # Where the group is along the route, m of arc length.
+        self._s = self.path.project(sc.robots.parent.start_xy)
+        self._visits = iter(_paper_visits(view))
+        self._goals: list[float] | None = None  # the travel's remaining leg ends
+        self._reached_s: float | None = None  # the last leg's end, to place the group by
+        self._direction = 1.0
+
+    # -- reference data sets ------------------------------------------------------------------
+    def reference_cameras(self, view: CampaignView) -> list[str]:
+        sc = view.scenario
+        if sc.campaign.reference_cameras is not None:
+            return list(sc.campaign.reference_cameras)
+        start = sc.robots.parent.start_xy
+        need = sc.calibration.min_visible_fraction
+        prism_height = float(np.mean([c[2] for c in sc.marker.cubes]))
+        return [
+            c.name
+            for c in sc.cameras
+            if station_visibility(
+                sc.space,
+                c.tsai(),
+                start,
+                sc.space.floor_z + INSTRUMENT_HEIGHT,
+                prism_height,
+                view.instrument_range,
+            )
+            >= need
+        ]
+
+    # -- visits ---------------------------------------------------------------------------------
+    def next_visit(self, view: CampaignView) -> Visit | Return | None:
+        self._goals = None
+        return next(self._visits, None)
+
+    # -- legs -------------------------------------------------------------------------------------
+    def next_leg(self, view: CampaignView, goal: Visit | Return) -> Leg | NoLeg | None:
+        path = self.path
+        parent_xy = view.parent.translation[:2]
+        if self._reached_s is not None:
+            # The parent fixed its pose after the last leg: the group is where it stands.
+            self._s = path.project(parent_xy, near=self._reached_s)
+            self._reached_s = None
+        if self._goals is None:
+            s_now = path.project(parent_xy, near=self._s)
+            if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
+                return None
+            s_goal = path.project(goal.station)
+            self._direction = 1.0 if s_goal >= s_now else -1.0
+            self._goals = leg_goals(path, s_now, s_goal, self._step(view))
+        else:
+            s_now = self._s
+        goals, direction = self._goals, self._direction
+        step = self._step(view)
+        while goals:
+            s_next = goals[0]
+            arrives = len(goals) == 1
+            next_xy = goal.station if arrives else path.at(s_next)
+            order = self._children_in_order(view, direction)
+            stops = formation(
+                view.scenario.space,
+                self.marker.cubes_body,
+                view.instrument_range,
+                path,
+                s_next,
+                parent_xy,
+                next_xy,
+                direction,
+                view.scenario.campaign.formation,
+                float(view.parent.translation[2]),
+                waiting_xy=view.robot_pose(order[1])[:2],
+            )
+            if stops is None:
+                # No room for the children ahead: a shorter leg (down to a fraction of a step).
+                if abs(s_next - s_now) > SHORTEST_LEG * step:
+                    goals.insert(0, 0.5 * (s_now + s_next))
+                    continue
+                self._goals = None
+                return NoLeg(
+                    "no_formation",
+                    f"no place for the children ahead of s = {s_next:.1f} m",
+                    f"no formation for the leg to s = {s_next:.1f} m",
+                )
+            goals.pop(0)
+            s_children = {c: path.project(view.robot_pose(c)[:2], near=self._s) for c in order}
+            moves = tuple(
+                self._move(child, s_children[child], path.project(stop.xy, near=self._s), stop)
+                for child, stop in zip(order, stops, strict=True)
+            )
+            heading = (
+                goal.yaw if arrives else path.heading(s_next) + (0 if direction > 0 else math.pi)
+            )
+            parent = self._move(view.parent_name, s_now, s_next, Stop(next_xy, heading))
+            self._reached_s = s_next
+            return Leg(moves, parent, arrives)
+        self._goals = None
+        return None
+
+    def _step(self, view: CampaignView) -> float:
+        return view.scenario.campaign.formation.step
+
+    def _children_in_order(self, view: CampaignView, direction: float) -> list[str]:
+        """The first two children, the one farthest ahead along the route first (it moves
+        first)."""
+        s = {c: self.path.project(view.robot_pose(c)[:2], near=self._s) for c in view.children[:2]}
+        return sorted(s, key=lambda c: direction * s[c], reverse=True)
+
+    def _move(self, robot: str, s_from: float, s_to: float, stop: Stop) -> Move:
+        """A drive along the route from arc length ``s_from`` to ``s_to``, then to ``stop``."""
+        return Move(
+            robot,
+            stop,
+            tuple(self.path.vertices_between(s_from, s_to)),
+            self.path.at(s_from),
+            self.path.at(s_to),
+        )
+
+    # -- a camera's data ---------------------------------------------------------------------------
+    def data_stops(self, view: CampaignView, camera: str, dataset: str, points: int) -> StopPlan:
+        sc = view.scenario
+        cam = sc.camera(camera).tsai()
+        child = _nearest_child(view, cam.position[:2], floor_view(cam, sc.space.floor_z, 40.0, 12))
+        anchor = next(c for c in view.children if c != child)
+        parent = view.parent
+        marker = self.marker
+        candidates = view_stops(
+            sc.space,
+            marker,
+            view.instrument_range,
+            cam,
+            parent.translation[:2],
+            float(parent.translation[2]),
+            view.robot_pose(anchor)[:2],
+        )
+        need = math.ceil(points / view.led_count)
+        if not candidates:
+            return StopPlan(child, [])
+        planned = tour(candidates[:need], view.robot_pose(child)[:2])
+        eye = parent.translation.copy()
+
+        def heading(stop: Stop) -> float | None:
+            # Turn the child where its own mast, arms or prisms would hide a prism.
+            return unhidden_yaw(
+                stop.xy, stop.yaw, marker.cubes_body, eye, sc.space.floor_z, MAX_TURN_AT_STOP_DEG
+            )
+
+        return StopPlan(
+            child, [v.stop for v in planned], [v.stop for v in candidates[need:]], heading
+        )
+
+
+def _paper_visits(view: CampaignView) -> list[Visit]:
+    """The scenario's visits, numbered per camera."""
+    out: list[Visit] = []
+    seen: dict[str, int] = {}
+    for v in view.scenario.calibration.visits:
+        seen[v.camera] = seen.get(v.camera, 0) + 1
+        station = np.asarray(v.station, dtype=float)
+        out.append(Visit(v.camera, seen[v.camera], station, math.radians(v.yaw_deg)))
+    return out
+
+
+def _nearest_child(
+    view: CampaignView, camera_xy: NDArray[np.float64], ground: NDArray[np.float64]
+) -> str:
+    """The child nearest the middle of a camera's view of the floor (of the camera itself
+    when it sees no floor)."""
+    centre = ground[:, :2].mean(axis=0) if len(ground) else camera_xy
+    return min(view.children, key=lambda c: float(np.linalg.norm(view.robot_pose(c)[:2] - centre)))

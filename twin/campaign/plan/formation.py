@@ -1,0 +1,164 @@
+"""Where the two children stop during a CPS leg: ahead of the parent's next station,
+staggered sideways, in sight and in range of the instrument at both of the parent's
+stations.
+
+Planned on the map and the campaign's estimates; nothing is measured here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from calib.rotation import wrap_angle
+from twin.campaign.plan.clearance import (
+    body_points,
+    child_profile,
+    in_range,
+    passes_near,
+    robot_fits,
+    sight_clear,
+)
+from twin.campaign.plan.occlusion import unhidden_yaw
+from twin.campaign.plan.route import RoutePath
+from twin.campaign.plan.stop import Stop
+from twin.scenario.schema import FormationSettings, Space
+
+MIN_SEPARATION = math.radians(4.0)
+"""Least angle between the two children seen from the parent, so that an aim at one is
+not nearer the other (a parent that just moved knows its heading to about a degree)."""
+
+FORMATION_CLEARANCE = 0.35
+"""Distance kept between a child's centre and walls in the formation, m (its radius, 0.29 m,
+and its stopping error: narrow corridors need the children close to the walls)."""
+
+SIGHT_MARGIN = 0.10
+"""A formation's lines of sight pass obstacles by at least this much, m: a child stops
+centimetres from its goal (further on wheel odometry), and a prism planned to graze a
+corner would be hidden."""
+
+
+def _instrument(xy: ArrayLike, instrument_z: float) -> NDArray[np.float64]:
+    p = np.asarray(xy, dtype=float).reshape(2)
+    return np.array([p[0], p[1], instrument_z])
+
+
+def formation(
+    space: Space,
+    cubes_body: ArrayLike,
+    instrument_range: tuple[float, float],
+    path: RoutePath,
+    s_next: float,
+    parent_now: ArrayLike,
+    parent_next: ArrayLike,
+    direction: float,
+    form: FormationSettings,
+    instrument_z: float,
+    waiting_xy: ArrayLike | None = None,
+) -> list[Stop] | None:
+    """Stops of the two children ahead of the parent's next station.
+
+    The children stand ahead (in the direction of travel, ``direction`` = +1 or -1 along the
+    path) of ``s_next``, staggered sideways; each must be free, in range and in sight of the
+    instrument at both the parent's current and next stations, and the two must be at least
+    ``MIN_SEPARATION`` apart seen from both. Smaller, mirrored and zero offsets and shorter
+    gaps are tried in turn.
+
+    Args:
+        space: the map. cubes_body: (3, 3) the marker's prisms in the child's body frame, m.
+        instrument_range: the total station's (least, greatest) distance, m.
+        path: the route. s_next: the parent's next station's arc length on it, m.
+        parent_now, parent_next: (2,) the parent's current and next station, m.
+        direction: +1 or -1, the direction of travel along the path.
+        form: the formation's settings. instrument_z: the instrument's height in W, m.
+        waiting_xy: (2,) where the other child stands while the far one is measured from
+            the current station (it moves second), m; it must not hide the far child's
+            prisms.
+
+    Returns:
+        The far child's stop first (it moves first), or None.
+    """
+    cubes = np.asarray(cubes_body, dtype=float)
+    stations = [_instrument(parent_now, instrument_z), _instrument(parent_next, instrument_z)]
+    gaps = [form.near_gap, 0.75 * form.near_gap + 0.5, 2.0]
+    lat = form.lateral
+    # (near, far) sideways offsets: staggered either way, then both to one side.
+    sides = [(lat, -lat), (-lat, lat), (0.5 * lat, -0.5 * lat), (-0.5 * lat, 0.5 * lat)]
+    sides += [(a * lat, b * lat) for a, b in ((0, -1), (0, 1), (-1, 0), (1, 0), (-1.5, -0.3))]
+    sides += [(a * lat, b * lat) for a, b in ((1.5, 0.3), (-0.3, -1.5), (0.3, 1.5))]
+    sides += [(0.3, -0.3), (-0.3, 0.3), (0.15, -0.15), (-0.15, 0.15)]  # narrow corridors
+    for gap in gaps:
+        for spacing in (form.spacing, 0.7 * form.spacing):
+            for near_side, far_side in sides:
+                places = []
+                for ahead, side in ((gap + spacing, far_side), (gap, near_side)):
+                    s = s_next + direction * ahead
+                    yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
+                    places.append((path.offset(s, side * direction), yaw))
+                # Where the children stand decides most; their headings cost more to find.
+                if not _places_ok(space, [xy for xy, _ in places], stations):
+                    continue
+                stops = []
+                for xy, yaw in places:
+                    turned = unhidden_yaw(xy, yaw, cubes, stations, space.floor_z)
+                    if turned is None:
+                        break  # every heading hides a prism from a station
+                    stops.append(Stop(xy, turned))
+                if len(stops) == len(places) and _formation_ok(
+                    space, stops, stations, cubes, instrument_range, waiting_xy
+                ):
+                    return stops
+    return None
+
+
+def _places_ok(
+    space: Space, places: list[NDArray[np.float64]], stations: list[NDArray[np.float64]]
+) -> bool:
+    """Whether the children's (2,) places (m) are free, 1 m apart and 1 m from each
+    instrument ((3,) positions, m)."""
+    xy = np.array(places)
+    if not robot_fits(space, xy, FORMATION_CLEARANCE).all():
+        return False
+    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
+        return False
+    return all(np.min(np.linalg.norm(xy - inst[:2], axis=1)) >= 1.0 for inst in stations)
+
+
+def _formation_ok(
+    space: Space,
+    stops: list[Stop],
+    stations: list[NDArray[np.float64]],
+    cubes: NDArray[np.float64],
+    instrument_range: tuple[float, float],
+    waiting_xy: ArrayLike | None = None,
+) -> bool:
+    """Whether the children's stops suit both stations: see :func:`formation`. Their
+    headings already keep every prism clear of its own assembly (:func:`unhidden_yaw`)."""
+    xy = np.array([s.xy for s in stops])
+    if not _places_ok(space, list(xy), stations):
+        return False
+    floor = space.floor_z
+    if waiting_xy is not None:
+        far = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
+        if passes_near(stations[0], far, waiting_xy, child_profile(floor)).any():
+            return False
+    for inst in stations:
+        bearings = []
+        for k, stop in enumerate(stops):
+            pts = body_points(stop.xy, stop.yaw, cubes, floor)[0]
+            d = np.linalg.norm(pts - inst, axis=1)
+            if not in_range(d, instrument_range).all():
+                return False
+            if not sight_clear(space, inst, pts, SIGHT_MARGIN).all():
+                return False
+            other = xy[1 - k]
+            if passes_near(inst, pts, other, child_profile(floor)).any():
+                return False
+            v = stop.xy - inst[:2]
+            bearings.append(math.atan2(v[1], v[0]))
+        sep = abs(wrap_angle(bearings[0] - bearings[1]))
+        if sep < MIN_SEPARATION:
+            return False
+    return True

@@ -1,0 +1,292 @@
+"""Travel by CPS (paper Section II.B): a leg's moves executed through :mod:`twin.hal`.
+
+The children drive to their stops one after the other, each measured by the standing
+parent as it arrives and placed in the CPS state; the ones placed first are measured again
+after the others drove (a child can be pushed, or roll off a ledge). Then the parent drives
+and fixes its pose from the stationary children.
+
+Two moves are recoveries, not faults, and are recorded as events: a child whose prism the
+parent cannot measure turns on the spot and is measured again (:data:`TURNS_DEG`); a parent
+that cannot see both children steps aside and measures again (:data:`SIDESTEPS`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from twin.campaign.journal import Journal, RobotJournal
+from twin.campaign.plan.clearance import ROBOT_CLEARANCE, path_clear, robot_fits
+from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
+from twin.campaign.strategy import Leg, Move
+from twin.hal.devices import MobileBase
+from twin.hal.rig import Rig
+from twin.instruments.errors import InconsistentChildrenError
+from twin.instruments.marker import MarkerAssembly
+from twin.localization.observation import ChildObservation
+from twin.localization.pose import ParentPose
+from twin.localization.sequence import CpsSequence
+from twin.scenario.schema import Space
+from twin.timing import timed
+
+ROUTE_TOLERANCE = 0.5
+"""A robot farther than this from the route (m) returns to it before following it."""
+
+TURNS_DEG = (30.0, -60.0)
+"""How a child turns, one after the other, when the parent cannot measure all its prisms."""
+
+SIDESTEPS = (0.4, -0.8)
+"""How the parent steps sideways, one after the other, m, when it cannot fix its pose."""
+
+FIX_ATTEMPTS = 2 + len(SIDESTEPS)
+"""Attempts at the parent's fix: twice where it stopped (starting from either child), then
+once after each side step."""
+
+
+class CampaignAborted(RuntimeError):
+    """The group cannot go on (CPS lost both children, or no leg can be planned)."""
+
+
+class Travel:
+    """Moves the robots and keeps the CPS state of the group.
+
+    Args:
+        rig: the devices. cps: the group's CPS state. journal: the campaign's journal.
+        space: the map (for the drives' clearance). marker: the assembly as surveyed.
+        lock_retries: further aims after a lost prism lock.
+        false_alarm_rate: of the consistency tests (None: no test, a noise-free instrument).
+    """
+
+    def __init__(
+        self,
+        rig: Rig,
+        cps: CpsSequence,
+        journal: Journal,
+        space: Space,
+        marker: MarkerAssembly,
+        lock_retries: int,
+        false_alarm_rate: float | None,
+    ) -> None:
+        self.rig, self.cps, self.journal = rig, cps, journal
+        self.space, self.marker = space, marker
+        self.lock_retries = lock_retries
+        self.false_alarm_rate = false_alarm_rate
+        self.children = list(rig.children)
+        # The measurement that placed each child in the CPS state.
+        self.placed: dict[str, ChildObservation] = {}
+
+    # -- a leg ---------------------------------------------------------------------------------
+    def execute(self, leg: Leg) -> bool:
+        """Move the children, then the parent, and fix the parent's pose.
+
+        Returns:
+            Whether the parent reached its stop.
+
+        Raises:
+            CampaignAborted: a child cannot be measured, or the parent cannot fix its pose.
+        """
+        order = [move.robot for move in leg.children]
+        for move in leg.children:
+            if not self.drive_along(self.rig.children[move.robot], move):
+                self.journal.failure(
+                    "child_blocked", "the child stopped short of its stop", move.robot
+                )
+            if self.place_child_turning(move.robot) is None:
+                raise CampaignAborted(f"the parent cannot measure {move.robot}")
+        for child in order[:-1]:
+            self.check_stayed(child, order[-1])
+        reached = self.drive_along(self.rig.parent, leg.parent)
+        self.fix_parent()
+        if not reached:
+            self.journal.failure(
+                "parent_blocked", "the parent stopped short of its goal", robot=self.rig.parent.name
+            )
+        return reached
+
+    def drive_along(self, base: MobileBase, move: Move) -> bool:
+        """Drive a base along the move's corners, then to its stop; False if a drive was
+        not completed."""
+        self.journal.show(robot=base.name)
+        here = base.odometry().pose[:2]
+        first = move.corners[0] if move.corners else move.stop.xy
+        # Off the route (in a camera's view, say) with an obstacle in the way: back onto the
+        # route first.
+        blocked = not path_clear(self.space, here, first, 0.3)
+        far = np.linalg.norm(here - move.entry) > ROUTE_TOLERANCE
+        if blocked and far and not base.drive_to(move.entry).reached:
+            return False
+        waypoints = list(move.corners)
+        last = waypoints[-1] if waypoints else here
+        if (
+            not path_clear(self.space, last, move.stop.xy, 0.35)
+            and np.linalg.norm(move.on_route - move.stop.xy) > 0.1
+        ):
+            waypoints.append(move.on_route)  # along the route, then sideways to the stop
+        for point in waypoints:
+            if not base.drive_to(point).reached:
+                return False
+        return base.drive_to(move.stop.xy, move.stop.yaw).reached
+
+    # -- measuring and placing children -------------------------------------------------------
+    def child_pose(self, child: str) -> NDArray[np.float64]:
+        """(3,) the child's own pose estimate, W."""
+        return self.rig.children[child].odometry().pose
+
+    def measure(self, child: str, parent: ParentPose | None = None) -> ChildObservation | None:
+        """The child's observation from the parent's pose (default: its CPS estimate)."""
+        return measure_child(
+            self.rig.total_station,
+            child,
+            parent if parent is not None else self.cps.parent,
+            self.child_pose(child),
+            self.marker,
+            self.space.floor_z,
+            self.lock_retries,
+            RobotJournal(self.journal, child),
+            self.false_alarm_rate,
+        )
+
+    def _correct_child_pose(self, child: str, obs: ChildObservation, parent: ParentPose) -> None:
+        """Correct the child's own localisation from its measured marker pose."""
+        if obs.marker_pose is None:
+            return
+        r = parent.rotation @ obs.marker_pose.rotation
+        origin = parent.level2world(obs.marker_pose.translation)
+        self.rig.children[child].set_pose(
+            float(origin[0]), float(origin[1]), math.atan2(r[1, 0], r[0, 0])
+        )
+
+    def place_child(self, child: str) -> ChildObservation | None:
+        """Measure a child that moved (the parent stands) and place it in the CPS state."""
+        obs = self.measure(child)
+        if obs is not None:
+            self._place(child, obs)
+        return obs
+
+    def _place(self, child: str, obs: ChildObservation) -> None:
+        """Place a child measured from the standing parent in the CPS state."""
+        with timed(self.rig.timings, "solving"):
+            self.cps.children_moved([obs])
+        self._correct_child_pose(child, obs, self.cps.parent)
+        self.placed[child] = obs
+
+    def place_child_turning(self, child: str) -> ChildObservation | None:
+        """:meth:`place_child`; if a prism stays out of reach, the child turns on the spot
+        (its reference point is on its mast, the axis it turns about) and is measured
+        again."""
+        obs = self.place_child(child)
+        for turn in TURNS_DEG:
+            if obs is not None:
+                return obs
+            pose = self.child_pose(child)
+            self.journal.event("child_turned", f"turning {turn:+.0f} deg to show its prisms", child)
+            self.rig.children[child].drive_to(pose[:2], pose[2] + math.radians(turn))
+            obs = self.place_child(child)
+        return obs
+
+    def check_stayed(self, child: str, mover: str) -> None:
+        """Measure a placed child again after ``mover`` drove (the parent stands), as a
+        surveyor checks a backsight; place it anew if it moved.
+
+        A parked robot can be pushed, or roll off a ledge; if it moved unnoticed, the
+        parent's next fix would find the two children inconsistent with no way to tell
+        which one moved.
+        """
+        before = self.placed.get(child)
+        if before is None:
+            return
+        obs = self.measure(child)
+        if obs is None or not moved_between(before, obs, self.false_alarm_rate):
+            return
+        shift = float(np.linalg.norm(obs.point_level - before.point_level))
+        self.journal.failure(
+            "child_moved",
+            f"{child} moved {1e3 * shift:.1f} mm while {mover} drove; placed again",
+            robot=child,
+            shift_m=shift,
+        )
+        self._place(child, obs)
+
+    # -- the parent's fix ------------------------------------------------------------------------
+    def fix_parent(self) -> None:
+        """The parent moved: measure the stationary children, solve its pose.
+
+        Raises:
+            CampaignAborted: no attempt gave a fix.
+        """
+        parent = self.rig.parent
+        z = float(self.cps.parent.translation[2])
+        for attempt in range(FIX_ATTEMPTS):
+            if attempt >= 2 and not self._step_aside(SIDESTEPS[attempt - 2]):
+                continue
+            odo = parent.odometry()
+            guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
+            self.rig.total_station.read_inclination()
+            # A retry starts from the other child: the first one measured orients the aim
+            # at the next, and a wrong first one must not spoil every attempt.
+            order = self.children if attempt % 2 == 0 else self.children[::-1]
+            obs = self._observe_children(order, guess, attempt)
+            if len(obs) < 2:
+                self.journal.failure(
+                    "parent_fix_failed", f"measured {len(obs)} children", robot=parent.name
+                )
+                continue
+            try:
+                with timed(self.rig.timings, "solving"):
+                    self.cps.parent_moved(obs)
+            except InconsistentChildrenError as exc:
+                self.journal.failure(
+                    "inconsistent_children", str(exc), robot=parent.name, attempt=attempt
+                )
+                continue
+            except ValueError as exc:  # geometry that cannot fix the yaw (children in line)
+                self.journal.failure(
+                    "parent_fix_failed", str(exc), robot=parent.name, attempt=attempt
+                )
+                continue
+            pose = self.cps.parent
+            parent.set_pose(float(pose.translation[0]), float(pose.translation[1]), pose.yaw)
+            self.journal.parent_fix(pose)
+            return
+        raise CampaignAborted("the parent could not fix its pose from the children")
+
+    def _step_aside(self, step: float) -> bool:
+        """A child's prism stays hidden from where the parent stands: CPS solves the
+        parent's pose wherever it stands, so it steps aside (if there is room) to measure
+        again. Whether it moved."""
+        parent = self.rig.parent
+        odo = parent.odometry()
+        side = np.array([-math.sin(odo.yaw), math.cos(odo.yaw)]) * step
+        target = odo.pose[:2] + side
+        if not robot_fits(self.space, target[None], ROBOT_CLEARANCE)[0]:
+            return False
+        self.journal.event(
+            "parent_stepped_aside", f"{step:+.1f} m to see the children", parent.name
+        )
+        parent.drive_to(target, odo.yaw)
+        return True
+
+    def _observe_children(
+        self, order: list[str], guess: ParentPose, attempt: int
+    ) -> list[ChildObservation]:
+        """Each child measured from the parent's guessed pose, the guess oriented on the
+        first found; a child whose shots found another's marker is left out."""
+        obs: list[ChildObservation] = []
+        for child in order:
+            o = self.measure(child, guess)
+            if o is None:
+                continue
+            seen = next((p for p in obs if same_marker(p.point_level, o.point_level)), None)
+            if seen is not None:
+                self.journal.failure(
+                    "wrong_child",
+                    f"{child}'s shots found {seen.child}'s marker again",
+                    robot=child,
+                    attempt=attempt,
+                )
+                continue
+            obs.append(o)
+            guess = oriented_on(guess, self.cps.child_position(child)[0], o.point_level)
+        return obs
