@@ -93,7 +93,7 @@ class Journal:
         self.clock = clock
         self.progress = progress or (lambda _: None)
         self.outcome = CampaignOutcome()
-        self._now = Progress("start")
+        self._current = Progress("start")
         self._fixes = 0
         self._last_xy = np.zeros(2)
 
@@ -114,13 +114,13 @@ class Journal:
     def stage(self, stage: str, camera: str = "", visit: int = 0, detail: str = "") -> None:
         """A stage starts."""
         self._record(STAGE, Stage(self.clock.now(), stage, camera, visit, detail))
-        self._now = Progress(stage, camera=camera, detail=detail)
+        self._current = Progress(stage, camera=camera, detail=detail)
         self.show()
 
     def show(self, **changes: Any) -> None:
         """Tell the progress display what changed (``robot``, ``camera``, ``points``)."""
-        self._now = replace(self._now, **changes, calibrated=len(self.outcome.calibrations))
-        self.progress(self._now)
+        self._current = replace(self._current, **changes, calibrated=len(self.outcome.calibrations))
+        self.progress(self._current)
 
     @property
     def travelled(self) -> float:

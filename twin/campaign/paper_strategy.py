@@ -61,7 +61,7 @@ class PaperStrategy(Strategy):
         self.path = RoutePath(sc.route.waypoints)
         self.marker = sc.marker.assembly()
         # Where the group is along the route, m of arc length.
-        self._s = self.path.project(sc.robots.parent.start_xy)
+        self._arc = self.path.project(sc.robots.parent.start_xy)
         self._visits = iter(_paper_visits(view))
         self._goals: list[float] | None = None  # the travel's remaining leg ends
         self._reached_s: float | None = None  # the last leg's end, to place the group by
@@ -100,17 +100,17 @@ class PaperStrategy(Strategy):
         parent_xy = view.parent.translation[:2]
         if self._reached_s is not None:
             # The parent fixed its pose after the last leg: the group is where it stands.
-            self._s = path.project(parent_xy, near=self._reached_s)
+            self._arc = path.project(parent_xy, near=self._reached_s)
             self._reached_s = None
         if self._goals is None:
-            s_now = path.project(parent_xy, near=self._s)
+            s_now = path.project(parent_xy, near=self._arc)
             if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
                 return None
             s_goal = path.project(goal.station)
             self._direction = 1.0 if s_goal >= s_now else -1.0
             self._goals = leg_goals(path, s_now, s_goal, self._step(view))
         else:
-            s_now = self._s
+            s_now = self._arc
         goals, direction = self._goals, self._direction
         step = self._step(view)
         while goals:
@@ -143,9 +143,9 @@ class PaperStrategy(Strategy):
                     f"no formation for the leg to s = {s_next:.1f} m",
                 )
             goals.pop(0)
-            s_children = {c: path.project(view.robot_pose(c)[:2], near=self._s) for c in order}
+            s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
             moves = tuple(
-                self._move(child, s_children[child], path.project(stop.xy, near=self._s), stop)
+                self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
                 for child, stop in zip(order, stops, strict=True)
             )
             heading = (
@@ -163,7 +163,8 @@ class PaperStrategy(Strategy):
     def _children_in_order(self, view: CampaignView, direction: float) -> list[str]:
         """The first two children, the one farthest ahead along the route first (it moves
         first)."""
-        s = {c: self.path.project(view.robot_pose(c)[:2], near=self._s) for c in view.children[:2]}
+        path, near = self.path, self._arc
+        s = {c: path.project(view.robot_pose(c)[:2], near=near) for c in view.children[:2]}
         return sorted(s, key=lambda c: direction * s[c], reverse=True)
 
     def _move(self, robot: str, s_from: float, s_to: float, stop: Stop) -> Move:

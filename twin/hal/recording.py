@@ -46,7 +46,7 @@ class Recorder(Protocol):
 class _RecordedTotalStation(TotalStationWrapper):
     def __init__(self, inner: TotalStation, recorder: Recorder, clock: Clock) -> None:
         super().__init__(inner)
-        self._rec, self._clock = recorder, clock
+        self._recorder, self._clock = recorder, clock
         self._aim: list[float] = []
 
     def point(self, target_level: ArrayLike) -> None:
@@ -63,58 +63,58 @@ class _RecordedTotalStation(TotalStationWrapper):
                 str(exc),
                 {"aim_level": self._aim, **_plain(exc.details)},
             )
-            self._rec.record("/total_station/failure", event, event.timestamp)
+            self._recorder.record("/total_station/failure", event, event.timestamp)
             raise
-        self._rec.record("/total_station/shot", shot, shot.timestamp)
+        self._recorder.record("/total_station/shot", shot, shot.timestamp)
         return shot
 
     def read_inclination(self) -> TiltReading:
         reading = self.inner.read_inclination()
-        self._rec.record("/total_station/inclination", reading, reading.timestamp)
+        self._recorder.record("/total_station/inclination", reading, reading.timestamp)
         return reading
 
 
 class _RecordedBase(MobileBaseWrapper):
     def __init__(self, inner: MobileBase, recorder: Recorder, clock: Clock) -> None:
         super().__init__(inner)
-        self._rec, self._clock = recorder, clock
+        self._recorder, self._clock = recorder, clock
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:
         result = self.inner.drive_to(goal_xy, goal_yaw)
-        self._rec.record(f"/base/{self.name}/drive", result, result.timestamp)
+        self._recorder.record(f"/base/{self.name}/drive", result, result.timestamp)
         return result
 
     def odometry(self) -> OdometryReading:
         reading = self.inner.odometry()
-        self._rec.record(f"/base/{self.name}/odometry", reading, reading.timestamp)
+        self._recorder.record(f"/base/{self.name}/odometry", reading, reading.timestamp)
         return reading
 
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         self.inner.set_pose(x, y, yaw)
         t = self._clock.now()
         fix = OdometryReading(self.name, t, float(x), float(y), float(yaw))
-        self._rec.record(f"/base/{self.name}/set_pose", fix, t)
+        self._recorder.record(f"/base/{self.name}/set_pose", fix, t)
 
 
 class _RecordedLeds(MarkerLedsWrapper):
     def __init__(self, inner: MarkerLeds, recorder: Recorder) -> None:
         super().__init__(inner)
-        self._rec = recorder
+        self._recorder = recorder
 
     def switch(self, on: Sequence[bool]) -> LedSwitch:
         event = self.inner.switch(on)
-        self._rec.record(f"/leds/{self.child}", event, event.timestamp)
+        self._recorder.record(f"/leds/{self.child}", event, event.timestamp)
         return event
 
 
 class _RecordedLedSensor(LedSensorWrapper):
     def __init__(self, inner: LedSensor, recorder: Recorder) -> None:
         super().__init__(inner)
-        self._rec = recorder
+        self._recorder = recorder
 
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         obs = self.inner.observe(child, sequence)
-        self._rec.record(f"/camera/{self.camera}/leds", obs, obs.timestamp)
+        self._recorder.record(f"/camera/{self.camera}/leds", obs, obs.timestamp)
         return obs
 
 

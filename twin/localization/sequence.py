@@ -122,10 +122,10 @@ class CpsSequence:
         self._max_yaw_std = max_yaw_std
         self._false_alarm_rate = check_false_alarm_rate(false_alarm_rate)
         n = 4 + 3 * len(names)
-        self._x = np.full(n, np.nan)
-        self._x[:4] = pose.vector
-        self._p = np.zeros((n, n))
-        self._p[:4, :4] = pose.covariance
+        self._state = np.full(n, np.nan)
+        self._state[:4] = pose.vector
+        self._covariance = np.zeros((n, n))
+        self._covariance[:4, :4] = pose.covariance
         self._known = np.zeros(len(names), dtype=bool)
         self._time = pose.timestamp
         self._steps: list[CpsStep] = []
@@ -146,18 +146,20 @@ class CpsSequence:
     def parent(self) -> ParentPose:
         """The parent's current pose estimate with its covariance."""
         if self._parent is None:
-            self._parent = ParentPose(self._x[0], self._x[1:4], self._p[:4, :4].copy(), self._time)
+            self._parent = ParentPose(
+                self._state[0], self._state[1:4], self._covariance[:4, :4].copy(), self._time
+            )
         return self._parent
 
     @property
     def state(self) -> NDArray[np.float64]:
         """(4 + 3N,) current joint state (NaN for children not yet placed)."""
-        return self._x.copy()
+        return self._state.copy()
 
     @property
     def state_covariance(self) -> NDArray[np.float64]:
         """(4 + 3N, 4 + 3N) current joint covariance."""
-        return self._p.copy()
+        return self._covariance.copy()
 
     @property
     def steps(self) -> tuple[CpsStep, ...]:
@@ -170,7 +172,7 @@ class CpsSequence:
         if not self._known[k]:
             raise ValueError(f"child {name!r} has not been measured yet")
         s = slice(4 + 3 * k, 7 + 3 * k)
-        return self._x[s].copy(), self._p[s, s].copy()
+        return self._state[s].copy(), self._covariance[s, s].copy()
 
     # -- steps ---------------------------------------------------------------------------
     def children_moved(
@@ -181,14 +183,14 @@ class CpsSequence:
         Each observed child is placed in the world from the parent's current estimate.
         """
         obs = self._check_observations(observations, minimum=1)
-        yaw, t = self._x[0], self._x[1:4]
+        yaw, t = self._state[0], self._state[1:4]
         rot = rot_z(yaw)
         jac_parent = level2world_jacobian(yaw, [o.point_level for o in obs])
-        n = self._x.size
+        n = self._state.size
         a = np.eye(n)
         b = np.zeros((n, 3 * len(obs)))
         noise = np.zeros((3 * len(obs), 3 * len(obs)))
-        x_new = self._x.copy()
+        x_new = self._state.copy()
         for j, o in enumerate(obs):
             k = self._index[o.child]
             s = slice(4 + 3 * k, 7 + 3 * k)
@@ -219,9 +221,9 @@ class CpsSequence:
                 "children_moved before the parent moves"
             )
         cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
-        world = self._x[cols].reshape(-1, 3)
+        world = self._state[cols].reshape(-1, 3)
         level = np.array([o.point_level for o in obs])
-        cov_w = self._p[np.ix_(cols, cols)]
+        cov_w = self._covariance[np.ix_(cols, cols)]
         cov_m = np.array([o.covariance for o in obs])
         stamp = self._stamp(obs, timestamp)
         kwargs = {
@@ -234,7 +236,7 @@ class CpsSequence:
             solution = solve_wls(world, level, cov_w, cov_m, **kwargs)
         else:
             solution = solve_closed_form(world, level, cov_w, cov_m, **kwargs)
-        n = self._x.size
+        n = self._state.size
         a = np.eye(n)
         a[:4, :] = 0.0
         a[:4, cols] = solution.children_jacobian
@@ -243,7 +245,7 @@ class CpsSequence:
         noise = np.zeros((3 * len(obs), 3 * len(obs)))
         for j, o in enumerate(obs):
             noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
-        x_new = self._x.copy()
+        x_new = self._state.copy()
         x_new[:4] = solution.pose.vector
         self._commit(x_new, a, b, noise)
         return self._record(StepKind.PARENT_MOVED, obs, ("parent",), stamp, solution)
@@ -277,9 +279,9 @@ class CpsSequence:
 
     def _commit(self, x_new: NDArray, a: NDArray, b: NDArray, noise: NDArray) -> None:
         # Children not placed yet have NaN state and zero covariance rows; A keeps them so.
-        p_new = a @ self._p @ a.T + b @ noise @ b.T
-        self._x = x_new
-        self._p = 0.5 * (p_new + p_new.T)
+        p_new = a @ self._covariance @ a.T + b @ noise @ b.T
+        self._state = x_new
+        self._covariance = 0.5 * (p_new + p_new.T)
         self._parent = None
 
     def _record(
@@ -299,8 +301,8 @@ class CpsSequence:
             moved=moved,
             observations=obs,
             parent=self.parent,
-            children_world=self._x[4:].reshape(-1, 3).copy(),
-            state_covariance=self._p.copy(),
+            children_world=self._state[4:].reshape(-1, 3).copy(),
+            state_covariance=self._covariance.copy(),
             solution=solution,
         )
         self._steps.append(step)

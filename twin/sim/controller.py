@@ -73,7 +73,7 @@ class DriveController:
         self.platform = platform
         self.goal_xy = (float(goal_xy[0]), float(goal_xy[1]))
         self.goal_yaw = None if goal_yaw is None else float(goal_yaw)
-        self.tol = tolerance or DriveTolerance()
+        self.tolerance = tolerance or DriveTolerance()
         self.phase = DrivePhase.TURN_TO_GOAL
         self.v = 0.0
         self.w = 0.0
@@ -101,7 +101,7 @@ class DriveController:
         along = dx * math.cos(yaw) + dy * math.sin(yaw)
         v_t, w_t = 0.0, 0.0
         if self.phase is DrivePhase.TURN_TO_GOAL:
-            if dist <= self.tol.position:
+            if dist <= self.tolerance.position:
                 self.phase = DrivePhase.TURN_TO_HEADING
             else:
                 err = self._aim(dx, dy, dist, yaw)
@@ -113,7 +113,7 @@ class DriveController:
             # v <= sqrt(2 a d) has braked the robot on the way in; what speed is left at
             # the goal (about sqrt(2 a tol)) ramps down in the next phase.
             ahead = self.direction * along
-            if dist <= self.tol.position:
+            if dist <= self.tolerance.position:
                 self.phase = DrivePhase.TURN_TO_HEADING
             elif ahead <= 0.0:
                 # Level with the goal but not on it (it lies beside the robot): aim again.
@@ -121,18 +121,18 @@ class DriveController:
                 w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
             else:
                 err = wrap_angle(math.atan2(dy, dx) - yaw)
-                if dist > self.tol.slow_radius and abs(err) > 2.0 * self.tol.turn_first:
+                if dist > self.tolerance.slow_radius and abs(err) > 2.0 * self.tolerance.turn_first:
                     self.phase = DrivePhase.TURN_TO_GOAL
                     w_t = self._turn_rate(self._aim(dx, dy, dist, yaw))
                 else:
                     v_t = min(p.max_speed, math.sqrt(2.0 * p.max_accel * ahead))
                     v_t = self.direction * max(v_t, 0.02)
-                    if dist > self.tol.slow_radius:
+                    if dist > self.tolerance.slow_radius:
                         w_t = max(-p.max_yaw_rate, min(p.max_yaw_rate, 2.0 * err))
         settled = False
         if self.phase is DrivePhase.TURN_TO_HEADING:
             err = 0.0 if self.goal_yaw is None else wrap_angle(self.goal_yaw - yaw)
-            if abs(err) <= self.tol.heading:
+            if abs(err) <= self.tolerance.heading:
                 settled = True
             elif self.v == 0.0:  # turn in place only once stopped, so as not to drift
                 w_t = self._turn_rate(err)
@@ -143,7 +143,8 @@ class DriveController:
         if settled and self.v == 0.0 and self.w == 0.0:
             # Done only on the goal: a robot that stopped off it (braking overshoot, a turn
             # in place that shifted it) closes the gap again.
-            self.phase = DrivePhase.DONE if dist <= self.tol.position else DrivePhase.TURN_TO_GOAL
+            done = dist <= self.tolerance.position
+            self.phase = DrivePhase.DONE if done else DrivePhase.TURN_TO_GOAL
         return self.v, self.w
 
     def _aim(self, dx: float, dy: float, dist: float, yaw: float) -> float:
@@ -154,7 +155,7 @@ class DriveController:
         """
         err = wrap_angle(math.atan2(dy, dx) - yaw)
         self.direction = 1.0
-        if dist < self.tol.slow_radius and abs(err) > 0.5 * math.pi:
+        if dist < self.tolerance.slow_radius and abs(err) > 0.5 * math.pi:
             self.direction = -1.0
             err = wrap_angle(err - math.pi)
         return err
@@ -165,9 +166,10 @@ class DriveController:
         Inside ``slow_radius`` the robot no longer steers, so it must point well enough to
         pass within half the position tolerance of the goal.
         """
-        if dist >= self.tol.slow_radius:
-            return self.tol.turn_first
-        return min(self.tol.turn_first, math.asin(min(1.0, 0.5 * self.tol.position / dist)))
+        if dist >= self.tolerance.slow_radius:
+            return self.tolerance.turn_first
+        tol = self.tolerance
+        return min(tol.turn_first, math.asin(min(1.0, 0.5 * tol.position / dist)))
 
     def _turn_rate(self, err: float) -> float:
         p = self.platform
