@@ -42,6 +42,9 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
     a = np.asarray(v, dtype=float)
     if a.shape[-1:] != (3,):
         raise ValueError(f"skew takes (..., 3) vectors, got shape {a.shape}")
+    if a.ndim == 1:  # one vector: as fast as a matrix literal
+        x, y, z = a
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     x, y, z = a[..., 0], a[..., 1], a[..., 2]
     out = np.zeros((*a.shape[:-1], 3, 3))
     out[..., 0, 1], out[..., 0, 2] = -z, y
