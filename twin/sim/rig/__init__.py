@@ -11,6 +11,8 @@
 
 Both use the total station's measurement model (:mod:`twin.instruments`), with MuJoCo ray
 casts for its line of sight, and both can inject faults (``[faults]`` in the scenario).
+Given a recorder, the simulation records its own truth beside the readings
+(:mod:`.truth`, :mod:`twin.truth`). Both pass :func:`twin.hal.check_rig`.
 """
 
 from twin.sim.rig.build import FIDELITIES, SimRig, build_sim_rig
