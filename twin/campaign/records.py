@@ -103,11 +103,11 @@ class CalibrationRecord:
 
 
 @dataclass(frozen=True)
-class Failure:
-    """Something went wrong and the campaign went on.
+class Occurrence:
+    """Something that happened in the campaign that is not a measurement.
 
     Attributes:
-        timestamp: s. kind: a short name (``lost_lock``, ``point_skipped``...).
+        timestamp: s. kind: a short name (``lost_lock``, ``child_turned``...).
         message: words. robot, camera: concerned ("" if none).
         details: plain values.
     """
@@ -121,19 +121,15 @@ class Failure:
 
 
 @dataclass(frozen=True)
-class CampaignEvent:
+class Failure(Occurrence):
+    """Something went wrong and the campaign went on (``lost_lock``, ``point_skipped``,
+    ``child_moved``...)."""
+
+
+@dataclass(frozen=True)
+class CampaignEvent(Occurrence):
     """Something the campaign did that is not a fault: a child turned to show its prisms,
-    the parent stepped aside to see the children, a prism aimed at again from the others.
-
-    Attributes: as :class:`Failure`.
-    """
-
-    timestamp: float
-    kind: str
-    message: str = ""
-    robot: str = ""
-    camera: str = ""
-    details: dict[str, Any] = field(default_factory=dict)
+    the parent stepped aside to see the children, a prism aimed at again from the others."""
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -227,20 +227,20 @@ def _structure_problems(rig: Rig, cameras: Sequence[str]) -> list[str]:
         out.append(f"every child must carry as many LEDs, got counts {sorted(counts)}")
     if not rig.led_sensors:
         out.append("there is no LED sensor: no camera can be calibrated")
-    for key, sensor in rig.led_sensors.items():
-        if not isinstance(sensor, LedSensor):
-            out.append(f"led_sensors[{key!r}] must be a LedSensor, got {type(sensor).__name__}")
-            continue
-        if sensor.camera != key:
-            out.append(f"led_sensors[{key!r}] is the sensor of camera {sensor.camera!r}")
-        out += _image_size_problems(f"led_sensors[{key!r}]", sensor.image_size)
-    for key, camera in rig.cameras.items():
-        if not isinstance(camera, Camera):
-            out.append(f"cameras[{key!r}] must be a Camera, got {type(camera).__name__}")
-            continue
-        if camera.name != key:
-            out.append(f"cameras[{key!r}] is called {camera.name!r}")
-        out += _image_size_problems(f"cameras[{key!r}]", camera.image_size)
+    views: list[tuple[str, Mapping[str, Any], type]] = [
+        ("led_sensors", rig.led_sensors, LedSensor),
+        ("cameras", rig.cameras, Camera),
+    ]
+    for label, devices, kind in views:
+        for key, device in devices.items():
+            where = f"{label}[{key!r}]"
+            if not isinstance(device, kind):
+                out.append(f"{where} must be a {kind.__name__}, got {type(device).__name__}")
+                continue
+            camera = device.camera if isinstance(device, LedSensor) else device.name
+            if camera != key:
+                out.append(f"{where} belongs to camera {camera!r}")
+            out += _image_size_problems(where, device.image_size)
     missing = [c for c in cameras if c not in rig.led_sensors]
     if missing:
         out.append(

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.twin.campaign.regression.cases import faulted
 from twin.record import read_log
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
@@ -72,23 +73,9 @@ def test_without_noise_every_camera_is_recovered_exactly(tmp_path):
 
 
 def test_faults_are_counted_and_the_run_finishes(tmp_path):
-    sc = load_scenario(SMOKE)
-    faults = {"lost_lock_rate": 0.1, "hidden_led_rate": 0.05, "unreachable": ((3.0, 0.0),)}
-    sc = sc.model_copy(
-        update={
-            "faults": sc.faults.model_copy(update=faults),
-            "route": sc.route.model_copy(update={"waypoints": ((0.0, 0.0), (4.0, 0.0))}),
-            "calibration": sc.calibration.model_copy(
-                update={
-                    "visits": (
-                        sc.calibration.visits[0],
-                        sc.calibration.visits[0].model_copy(update={"station": (3.0, 0.0)}),
-                    )
-                }
-            ),
-        }
+    results = run_scenario(
+        faulted(load_scenario(SMOKE)), tmp_path, fidelity="geometric", report=False
     )
-    results = run_scenario(sc, tmp_path, fidelity="geometric", report=False)
     f = results["failures"]
     assert f.get("lost_lock", 0) > 0  # the instrument
     assert f.get("led_occluded", 0) > 0

@@ -68,8 +68,12 @@ def scenario_of(case: Case):
     from twin.scenario import load_scenario
 
     sc = load_scenario(ROOT / case.scenario)
-    if not case.faults:
-        return sc
+    return faulted(sc) if case.faults else sc
+
+
+def faulted(sc):
+    """The scenario with lost locks (10 %), hidden LEDs (5 %) and a second visit of its
+    first camera from an unreachable station at (3, 0), on a straight route to x = 4 m."""
     faults = {"lost_lock_rate": 0.1, "hidden_led_rate": 0.05, "unreachable": ((3.0, 0.0),)}
     return sc.model_copy(
         update={
