@@ -3,9 +3,10 @@
 This is the one place where the backend is chosen: a simulated rig at the ``render`` or
 ``geometric`` fidelity (:mod:`twin.sim.rig`) is built on the scenario's world, wrapped so
 that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
-:class:`twin.campaign.Campaign`. The simulation's truth (camera poses, the parent's true
-pose at every CPS fix) is written to the log beside the readings, under ``/truth/``. The
-results are then computed from the log alone (:func:`twin.campaign.log_results.results_from_log`):
+:class:`twin.campaign.Campaign` with its strategy. The simulation records its own truth
+(camera poses, the instrument's true pose at every CPS fix) beside the readings, under
+``/truth/`` (:mod:`twin.truth`). The results are then computed from the log alone
+(:func:`twin.campaign.log_results.results_from_log`):
 
 - ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
   calibration), ``DIR/figures/`` and ``DIR/report.md``.

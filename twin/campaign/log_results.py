@@ -5,7 +5,7 @@ when a simulation wrote its truth beside them, :mod:`twin.truth`) and returns th
 ``results.json``: every calibration with its parameters in the paper's units, the Table III
 errors (world: against the reference data sets measured from the first station; local:
 against the data taken at that station), the errors against the truth, the repeatability of
-cameras calibrated twice, the parent's track and every failure by kind.
+cameras calibrated twice, the parent's track, and every failure and event by kind.
 """
 
 from __future__ import annotations

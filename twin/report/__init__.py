@@ -14,7 +14,8 @@ may be missing in older or partial runs)::
                   residuals_px[[du, dv]], data_points_xy[[x, y]]}],
     skipped_visits[{camera, visit, station, reason, message}],
     repeatability_mm{camera: [dx, dy, dz]}, parent_final_error_mm,
-    parent_track{estimated[[x, y]], true[[x, y]]}, failures{kind: count}
+    parent_track{estimated[[x, y]], true[[x, y]]}, failures{kind: count},
+    events{kind: count} (the campaign's recoveries: a child turned, the parent stepped aside)
 
 ``visit`` counts the visits of one camera (1: its first calibration). The paper's
 published numbers are in :mod:`twin.report.paper`, keyed the same way.

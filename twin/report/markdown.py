@@ -1,11 +1,11 @@
 """The report of a campaign: a Markdown page beside the paper's Tables II and III.
 
 :func:`write_report` writes ``report.md`` and its three figures. The page holds the run's
-settings, a summary (what was calibrated, what was skipped and why, failures, the parent's
-final error), Table II and Table III side by side with the paper's values (paper | twin,
-in the paper's units: px, mm, deg), the repeatability of cameras visited twice, the
-errors against the twin's truth (which the paper could not know), the time spent by stage
-and the figures.
+settings, a summary (what was calibrated, what was skipped and why, failures and the
+campaign's recoveries, the parent's final error), Table II and Table III side by side with
+the paper's values (paper | twin, in the paper's units: px, mm, deg), the repeatability of
+cameras visited twice, the errors against the twin's truth (which the paper could not
+know), the time spent by stage and the figures.
 """
 
 from __future__ import annotations
@@ -171,17 +171,17 @@ def _summary(scenario: Scenario | None, results: Results) -> list[str]:
             ),
         )
         lines.append("")
-    failures = mapping(results.get("failures"))
-    lines += ["### Failures by kind", ""]
-    if failures:
-        total = sum(int(number(v) or 0) for v in failures.values())
-        lines += table(
-            ("kind", "count"),
-            [*((k, fmt(v, ".0f")) for k, v in sorted(failures.items())), ("total", str(total))],
-        )
-    else:
-        lines.append("None recorded.")
-    return [*lines, ""]
+    for key, title in (("failures", "Failures by kind"), ("events", "Recoveries by kind")):
+        counts = mapping(results.get(key))
+        lines += [f"### {title}", ""]
+        if counts:
+            total = sum(int(number(v) or 0) for v in counts.values())
+            rows = [(k, fmt(v, ".0f")) for k, v in sorted(counts.items())]
+            lines += table(("kind", "count"), [*rows, ("total", str(total))])
+        else:
+            lines.append("None recorded.")
+        lines.append("")
+    return lines
 
 
 def _xy(value: Any) -> str:

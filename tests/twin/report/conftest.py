@@ -97,6 +97,7 @@ def results(scenario: Scenario) -> dict[str, Any]:
             "true": (track + rng.normal(0.0, 0.01, track.shape)).tolist(),
         },
         "failures": {"lost_lock": 2, "leds_not_found": 3, "point_unreachable": 0},
+        "events": {"prism_reaimed": 7, "child_turned": 1},
     }
 
 

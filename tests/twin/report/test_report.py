@@ -84,6 +84,10 @@ def test_full_run(scenario: Scenario, results: dict[str, Any], tmp_path: Path) -
     assert "Calibrated visits: 5 of 5 planned" in summary
     assert "12.3 mm" in summary
     assert "lost_lock" in summary
+    recoveries = summary[summary.index("Recoveries by kind") :]
+    assert row(recoveries, "child_turned")[1] == "1"
+    assert row(recoveries, "total")[1] == "8"
+    assert "prism_reaimed" not in summary[: summary.index("Recoveries by kind")]
 
     t2 = section(text, "Table II")
     f = row(t2, "f / pixel size")
