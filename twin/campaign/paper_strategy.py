@@ -63,7 +63,8 @@ class PaperStrategy(Strategy):
         # Where the group is along the route, m of arc length.
         self._arc = self.path.project(sc.robots.parent.start_xy)
         self._visits = iter(_paper_visits(view))
-        self._goals: list[float] | None = None  # the travel's remaining leg ends
+        self._goal: Visit | Return | None = None  # where the current travel goes
+        self._leg_ends: list[float] | None = None  # the travel's remaining leg ends
         self._reached_s: float | None = None  # the last leg's end, to place the group by
         self._direction = 1.0
 
@@ -91,31 +92,32 @@ class PaperStrategy(Strategy):
 
     # -- visits ---------------------------------------------------------------------------------
     def next_visit(self, view: CampaignView) -> Visit | Return | None:
-        self._goals = None
         return next(self._visits, None)
 
     # -- legs -------------------------------------------------------------------------------------
     def next_leg(self, view: CampaignView, goal: Visit | Return) -> Leg | NoLeg | None:
         path = self.path
         parent_xy = view.parent.translation[:2]
+        if goal is not self._goal:  # a new travel
+            self._goal, self._leg_ends = goal, None
         if self._reached_s is not None:
             # The parent fixed its pose after the last leg: the group is where it stands.
             self._arc = path.project(parent_xy, near=self._reached_s)
             self._reached_s = None
-        if self._goals is None:
+        if self._leg_ends is None:
             s_now = path.project(parent_xy, near=self._arc)
             if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
                 return None
             s_goal = path.project(goal.station)
             self._direction = 1.0 if s_goal >= s_now else -1.0
-            self._goals = leg_goals(path, s_now, s_goal, self._step(view))
+            self._leg_ends = leg_goals(path, s_now, s_goal, self._step(view))
         else:
             s_now = self._arc
-        goals, direction = self._goals, self._direction
+        ends, direction = self._leg_ends, self._direction
         step = self._step(view)
-        while goals:
-            s_next = goals[0]
-            arrives = len(goals) == 1
+        while ends:
+            s_next = ends[0]
+            arrives = len(ends) == 1
             next_xy = goal.station if arrives else path.at(s_next)
             order = self._children_in_order(view, direction)
             stops = formation(
@@ -134,15 +136,15 @@ class PaperStrategy(Strategy):
             if stops is None:
                 # No room for the children ahead: a shorter leg (down to a fraction of a step).
                 if abs(s_next - s_now) > SHORTEST_LEG * step:
-                    goals.insert(0, 0.5 * (s_now + s_next))
+                    ends.insert(0, 0.5 * (s_now + s_next))
                     continue
-                self._goals = None
+                self._leg_ends = None
                 return NoLeg(
                     "no_formation",
                     f"no place for the children ahead of s = {s_next:.1f} m",
                     f"no formation for the leg to s = {s_next:.1f} m",
                 )
-            goals.pop(0)
+            ends.pop(0)
             s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
             moves = tuple(
                 self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
@@ -154,7 +156,7 @@ class PaperStrategy(Strategy):
             parent = self._move(view.parent_name, s_now, s_next, Stop(next_xy, heading))
             self._reached_s = s_next
             return Leg(moves, parent, arrives)
-        self._goals = None
+        self._leg_ends = None
         return None
 
     def _step(self, view: CampaignView) -> float:

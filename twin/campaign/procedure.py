@@ -230,7 +230,9 @@ class Campaign:
             return False
         if isinstance(goal, Return):
             if not reached:
-                self.journal.failure("return_unreachable", "the parent stopped short", "parent")
+                self.journal.failure(
+                    "return_unreachable", "the parent stopped short", self.rig.parent.name
+                )
             return True
         if not reached:
             message = "the parent stopped short"

@@ -119,7 +119,6 @@ class _Scripted(PaperStrategy):
         return []
 
     def next_visit(self, view):
-        self._goals = None
         return self.goals.pop(0) if self.goals else None
 
 

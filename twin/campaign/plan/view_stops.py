@@ -100,9 +100,9 @@ def view_stops(
     cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
     inst = np.array([parent[0], parent[1], instrument_z])
     # Each test on the candidates that passed the ones before (the cheap ones first).
-    sel, pix = _leds_in_image(camera, led_w)
-    sel = sel[_leds_seen(space, cam, led_w[sel], parent, anchor)]
-    sel = sel[_prisms_seen(space, instrument_range, inst, cube_w[sel], anchor)]
+    sel, pix = leds_in_image(camera, led_w)
+    sel = sel[leds_seen(space, cam, led_w[sel], parent, anchor)]
+    sel = sel[prisms_seen(space, instrument_range, inst, cube_w[sel], anchor)]
     if sel.size == 0:
         return []
     keep = idx[sel]
@@ -116,11 +116,11 @@ def view_stops(
             (depth - depth.min()) / max(np.ptp(depth), 1e-9),
         ]
     )
-    order = _farthest_first(feats, start=np.array([0.5, 0.5, 0.5]))
+    order = farthest_first(feats, start=np.array([0.5, 0.5, 0.5]))
     return [ViewStop(Stop(xy[keep[k]].copy(), float(yaw[keep[k]])), pix[k]) for k in order]
 
 
-def _leds_in_image(
+def leds_in_image(
     camera: TsaiCamera, led_w: NDArray[np.float64]
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Which of N candidates' (N, K, 3) LEDs (W, m) all lie more than 0.1 m in front of
@@ -144,7 +144,7 @@ def _leds_in_image(
     return np.flatnonzero((z > 0.1).all(axis=1) & inside.all(axis=1)), uv
 
 
-def _leds_seen(
+def leds_seen(
     space: Space,
     cam: NDArray[np.float64],
     led_w: NDArray[np.float64],
@@ -163,7 +163,7 @@ def _leds_seen(
     return ~hidden.reshape(n, k).any(axis=1)
 
 
-def _prisms_seen(
+def prisms_seen(
     space: Space,
     instrument_range: tuple[float, float],
     inst: NDArray[np.float64],
@@ -183,7 +183,7 @@ def _prisms_seen(
     return ok & ~hidden.reshape(n, k).any(axis=1)
 
 
-def _farthest_first(feats: NDArray[np.float64], start: NDArray[np.float64]) -> list[int]:
+def farthest_first(feats: NDArray[np.float64], start: NDArray[np.float64]) -> list[int]:
     """Farthest-point order of (N, D) features, first the one nearest ``start``."""
     n = len(feats)
     first = int(np.argmin(_norms(feats - start)))

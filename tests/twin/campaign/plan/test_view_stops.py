@@ -12,10 +12,10 @@ from hypothesis import strategies as st
 
 from twin.campaign.plan.clearance import body_points
 from twin.campaign.plan.view_stops import (
-    _farthest_first,
-    _leds_in_image,
-    _leds_seen,
-    _prisms_seen,
+    farthest_first,
+    leds_in_image,
+    leds_seen,
+    prisms_seen,
     view_stops,
 )
 from twin.scenario import load_scenario
@@ -51,17 +51,17 @@ def test_candidate_tests_in_a_batch_are_each_alone(hall, name):
     # The parent and the anchor stand in the view, where they hide some LEDs and prisms.
     parent, anchor = ground.mean(axis=0), 0.5 * (ground.mean(axis=0) + ground[0])
     inst = np.array([parent[0], parent[1], 0.0])
-    kept, pixels = _leds_in_image(camera, leds)
-    seen = _leds_seen(hall.space, camera.position, leds, parent, anchor)
-    reachable = _prisms_seen(hall.space, RANGE, inst, cubes, anchor)
+    kept, pixels = leds_in_image(camera, leds)
+    seen = leds_seen(hall.space, camera.position, leds, parent, anchor)
+    reachable = prisms_seen(hall.space, RANGE, inst, cubes, anchor)
     for i in range(len(leds)):
-        alone, alone_pixels = _leds_in_image(camera, leds[i : i + 1])
+        alone, alone_pixels = leds_in_image(camera, leds[i : i + 1])
         assert (i in kept) == (alone.size == 1)
         if alone.size:
             np.testing.assert_allclose(pixels[i], alone_pixels[0], rtol=1e-12)
         one = slice(i, i + 1)
-        assert seen[i] == _leds_seen(hall.space, camera.position, leds[one], parent, anchor)[0]
-        assert reachable[i] == _prisms_seen(hall.space, RANGE, inst, cubes[one], anchor)[0]
+        assert seen[i] == leds_seen(hall.space, camera.position, leds[one], parent, anchor)[0]
+        assert reachable[i] == prisms_seen(hall.space, RANGE, inst, cubes[one], anchor)[0]
     # Every test both keeps and drops some of these candidates.
     assert 0 < kept.size < len(leds)
     assert 0 < seen.sum() < len(leds)
@@ -98,6 +98,6 @@ def test_farthest_first_order(n, seed):
     feats = np.random.default_rng(seed).random((n, 3))
     feats[n // 2 :: 4] = feats[0]  # ties
     start = np.array([0.5, 0.5, 0.5])
-    order = _farthest_first(feats, start)
+    order = farthest_first(feats, start)
     assert order == _farthest_first_reference(feats, start)
     assert sorted(order) == list(range(n))
