@@ -56,11 +56,28 @@ CASES = (
 
 def environment() -> dict[str, str]:
     """What the stored results depend on besides the code: Python, the libraries, the
-    machine's architecture."""
-    env = {"python": platform.python_version(), "machine": platform.machine()}
+    machine's architecture and processor (vectorised maths and the software renderer may
+    round differently on another)."""
+    env = {"python": platform.python_version(), "machine": platform.machine(), "cpu": _cpu()}
     for name in PACKAGES:
         env[name] = metadata.version(name)
     return env
+
+
+def _cpu() -> str:
+    """The processor's model name and its widest vector extension, as Linux reports them
+    ("" elsewhere)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text(encoding="utf-8")
+    except OSError:
+        return ""
+    fields: dict[str, str] = {}
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())
+    flags = set(fields.get("flags", "").split())
+    widest = next((f for f in ("avx512f", "avx2", "sse4_2") if f in flags), "")
+    return f"{fields.get('model name', '')} ({widest})"
 
 
 def scenario_of(case: Case):
