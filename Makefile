@@ -30,7 +30,7 @@ $(VENV)/.stamp-dev: pyproject.toml
 	touch $(VENV)/.stamp-run $@
 
 run: $(VENV)/.stamp-run gl-libs
-	$(VENV)/bin/twin run scenarios/paper_hall.toml --fidelity render --strategy paper --out out/paper_hall
+	$(VENV)/bin/twin run scenarios/paper_hall.toml --fidelity render --strategy paper --out out/paper_hall --overwrite
 
 test: $(VENV)/.stamp-dev gl-libs
 	$(VENV)/bin/ruff check .

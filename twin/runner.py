@@ -31,6 +31,7 @@ from twin.campaign.strategies import strategy_for
 from twin.hal.recording import recorded
 from twin.hal.rig import Rig
 from twin.instruments.marker import MarkerAssembly
+from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
@@ -51,13 +52,16 @@ def run_scenario(
     advertised_noise: Noise | None = None,
     strategy: str | None = None,
     adapt_rig: Callable[[SimRig], Rig] | None = None,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
 
     Args:
         scenario: a scenario or the path of its file.
         out_dir: where ``log.mcap``, ``results.json``, ``cameras/``, ``figures/`` and
-            ``report.md`` go (created if needed).
+            ``report.md`` go (created if needed). It must be empty (or a folder that
+            holds only what is written here) unless ``overwrite``: see
+            :func:`twin.outputs.claim_folder`.
         fidelity: ``render`` or ``geometric``.
         seed: the run's root seed (default: the scenario's).
         noise: False switches every noise source off (:meth:`Scenario.without_noise`).
@@ -71,12 +75,14 @@ def run_scenario(
         adapt_rig: given the simulated rig (its devices and its world), returns the rig the
             campaign runs with: the devices wrapped to inject a fault, say
             (:mod:`twin.hal.wrappers`). The recorder wraps what it returns.
+        overwrite: replace what an earlier run wrote in ``out_dir``.
 
     Returns:
         The results (also in ``results.json``).
 
     Raises:
         ValueError: an unknown fidelity or strategy (nothing is written).
+        twin.outputs.OutputError: ``out_dir`` cannot be used (nothing is written).
     """
     if fidelity not in FIDELITIES:
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
@@ -86,8 +92,15 @@ def run_scenario(
     if not noise:
         sc = sc.without_noise()
     chosen = strategy_for(sc, strategy)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    arguments = {
+        "scenario": sc.source or sc.name,
+        "fidelity": fidelity,
+        "seed": sc.seed,
+        "noise": noise,
+        "strategy": chosen.name,
+    }
+    folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
+    out = folder.path
     log_path = out / "log.mcap"
     t0 = time.perf_counter()
     with McapRecorder(log_path) as log:
@@ -123,11 +136,16 @@ def run_scenario(
         finally:
             sim.close()
     results = results_from_log(read_log(log_path).messages, sc.campaign.pixel_size_mm)
-    (out / "results.json").write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
+    write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
     write_cameras(results, read_log(log_path).messages, out / "cameras")
     if report:
         write_report(sc, results, out)
+    folder.finished(calibrations=len(results["calibrations"]))
     return results
+
+
+RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
+"""What a run writes in its folder (and clears there with ``overwrite``)."""
 
 
 MARKER_STREAM = 4

@@ -10,6 +10,7 @@ from typing import Any
 
 from twin.montecarlo.sources import SOURCES
 from twin.montecarlo.summary import AGREEMENT
+from twin.outputs import write_text_atomic
 from twin.report.markdown import fmt, table
 from twin.report.reading import visit_name
 
@@ -200,5 +201,5 @@ def write_report(summary: dict[str, Any], figures: Mapping[str, Path], out_dir: 
     """Write ``out_dir/report.md``; returns its path."""
     out = Path(out_dir)
     path = out / "report.md"
-    path.write_text(render_report(summary, figures, out))
+    write_text_atomic(path, render_report(summary, figures, out))
     return path

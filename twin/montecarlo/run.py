@@ -22,12 +22,15 @@ from twin.montecarlo.seeds import trial_seed
 from twin.montecarlo.sources import configurations
 from twin.montecarlo.table import TrialTable
 from twin.montecarlo.trial import TrialSpec, run_trial
+from twin.outputs import claim_folder, write_text_atomic
 from twin.report.reading import planned_visits
 from twin.scenario import Scenario
 
 TABLE = "trials.csv"
 SETTINGS = "montecarlo.json"
 SUMMARY = "summary.json"
+OUTPUTS = (TABLE, SETTINGS, SUMMARY, "figures", "report.md")
+"""What a Monte-Carlo run writes in its folder (and clears there with ``overwrite``)."""
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,7 @@ def run_montecarlo(
     progress: Callable[[McProgress], None] | None = None,
     trial_fn: Callable[[TrialSpec], Any] = run_trial,
     strategy: str | None = None,
+    overwrite: bool = False,
 ) -> list[dict[str, Any]]:
     """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
 
@@ -107,10 +111,13 @@ def run_montecarlo(
         trial_fn: what runs one trial (a picklable function; tests replace it).
         strategy: the campaign's strategy by name (default: the scenario's
             ``campaign.strategy``).
+        overwrite: replace what an earlier run wrote in ``out_dir``.
 
     Raises:
-        ValueError: for bad counts, an unknown strategy, a run in ``out_dir`` without
-            ``resume``, or settings that differ from the run being resumed.
+        ValueError: for bad counts, an unknown strategy, or settings that differ from the
+            run being resumed.
+        twin.outputs.OutputError: ``out_dir`` cannot be used: it holds something else
+            and neither ``resume`` (for a Monte-Carlo run) nor ``overwrite`` was given.
     """
     if trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
@@ -119,18 +126,18 @@ def run_montecarlo(
     seed = scenario.seed if master_seed is None else int(master_seed)
     strategy_name = strategy_named_in(scenario, strategy)
     configs = configurations(budget)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     settings = _settings(scenario, fidelity, strategy_name, seed, configs)
-    settings_path, table_path = out / SETTINGS, out / TABLE
-    if resume:
-        _check_resume(settings_path, settings)
-    elif table_path.exists():
-        raise ValueError(f"{out} already holds a Monte-Carlo run: pass --resume or another --out")
     runner = make_engine(engine, workers, ray_address)
     try:
+        folder = claim_folder(
+            Path(out_dir), "montecarlo", OUTPUTS, settings, overwrite=overwrite, resume=resume
+        )
+        out = folder.path
+        settings_path, table_path = out / SETTINGS, out / TABLE
+        if resume:
+            _check_resume(settings_path, settings)
         settings["trials"] = trials
-        settings_path.write_text(json.dumps(settings, indent=2) + "\n")
+        write_text_atomic(settings_path, json.dumps(settings, indent=2) + "\n")
         rows_per_trial = len(planned_visits(scenario))
         specs = [
             TrialSpec(scenario, config, i, trial_seed(seed, i), fidelity, strategy_name)
@@ -155,6 +162,7 @@ def run_montecarlo(
     settings["trials_per_second"] = len(todo) / elapsed if todo and elapsed > 0 else None
     settings["wall_time_s"] = elapsed
     write_outputs(rows, settings, out)
+    folder.finished(trials=trials)
     return rows
 
 
@@ -187,7 +195,7 @@ def write_outputs(rows: list[dict[str, Any]], settings: dict[str, Any], out: Pat
 
     summary = summarise(rows, settings)
     text = json.dumps(_finite_or_null(summary), indent=2, allow_nan=False)
-    (out / SUMMARY).write_text(text + "\n")
+    write_text_atomic(out / SUMMARY, text + "\n")
     figures = write_figures(rows, summary, out / "figures")
     write_report(summary, figures, out)
     return summary

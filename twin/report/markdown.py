@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from twin.outputs import write_text_atomic
 from twin.report import figures, paper
 from twin.report.reading import (
     Results,
@@ -514,5 +515,5 @@ def write_report(scenario: Scenario, results: Results, out_dir: str | Path) -> P
         "residuals": figures.residuals(results, fig_dir / "residuals.png"),
     }
     report = out_dir / "report.md"
-    report.write_text(render_markdown(scenario, results, paths, out_dir), encoding="utf-8")
+    write_text_atomic(report, render_markdown(scenario, results, paths, out_dir))
     return report

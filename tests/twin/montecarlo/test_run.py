@@ -16,6 +16,7 @@ import pytest
 from twin.montecarlo import run_montecarlo
 from twin.montecarlo.engines import make_engine
 from twin.montecarlo.run import SETTINGS, TABLE
+from twin.outputs import OutputError
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -104,8 +105,9 @@ def test_resuming_with_other_settings_is_refused(smoke, reference, tmp_path):
         run_montecarlo(smoke, tmp_path, TRIALS, master_seed=12, resume=True)
     with pytest.raises(ValueError, match="fidelity"):
         run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, fidelity="render", resume=True)
-    with pytest.raises(FileNotFoundError, match="no run to resume"):
+    with pytest.raises(OutputError, match="holds no `twin montecarlo` run to resume"):
         run_montecarlo(smoke, tmp_path / "empty", TRIALS, resume=True)
+    assert not (tmp_path / "empty").exists()
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,243 @@
+"""Output folders and files: one run per folder, nothing half-written.
+
+A command that writes a folder of results (``twin run``, ``twin montecarlo``, ``twin
+detect``) claims it first (:func:`claim_folder`): the folder gets a small manifest
+(:data:`MANIFEST`) naming the command, its arguments and whether the run finished. A
+folder that holds anything else is refused unless the user asks to ``--overwrite`` it,
+and then only what the command owns is cleared (the files and folders it writes); a
+``twin montecarlo --resume`` continues its own run. Result files are written atomically
+(:func:`write_text_atomic`: to a temporary name beside them, then renamed), so that a run
+killed half-way never leaves a results file that belongs to another run's log.
+
+Every problem with an output path is an :class:`OutputError` that names the option and
+the path and says what was expected; the commands turn it into exit code 2.
+"""
+
+from __future__ import annotations
+
+import datetime
+import fnmatch
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+MANIFEST = "twin-output.json"
+"""The manifest a command writes into the folder it claims."""
+
+RESUMABLE = ("montecarlo",)
+"""Commands that can continue their own run in a folder (``--resume``)."""
+
+
+class OutputError(ValueError):
+    """An output path that cannot be used: the message names the option and the path."""
+
+
+@dataclass(frozen=True)
+class ClaimedFolder:
+    """A folder a command may write into.
+
+    Attributes:
+        path: the folder. command: the command that claimed it.
+        resumed: whether an earlier run of the command is continued.
+    """
+
+    path: Path
+    command: str
+    resumed: bool = False
+
+    def finished(self, **facts: Any) -> None:
+        """Mark the run in the manifest as finished, with ``facts`` beside it."""
+        manifest = read_manifest(self.path) or {}
+        manifest.update(complete=True, finished=_now(), **facts)
+        write_text_atomic(self.path / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+
+
+def read_manifest(folder: Path) -> dict[str, Any] | None:
+    """The manifest of a folder a command claimed, or None (no manifest, or unreadable)."""
+    try:
+        data = json.loads((Path(folder) / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def check_file_target(path: Path, option: str) -> Path:
+    """``path`` as a file to write: not a folder, not under a file, in a folder that can
+    be written (created if missing).
+
+    Raises:
+        OutputError: naming ``option``, the path and what was expected.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputError(f"{option} {path}: is a folder; expected a file name")
+    _make_folder(path.parent, option, path)
+    if not os.access(path.parent, os.W_OK):
+        raise OutputError(f"{option} {path}: the folder {path.parent} cannot be written")
+    return path
+
+
+def claim_folder(
+    path: Path,
+    command: str,
+    owns: Iterable[str],
+    arguments: Mapping[str, Any] | None = None,
+    *,
+    overwrite: bool = False,
+    resume: bool = False,
+    option: str = "--out",
+) -> ClaimedFolder:
+    """Claim ``path`` for one run of ``command``.
+
+    Args:
+        path: the output folder (created if missing).
+        command: the command's name (``run``, ``montecarlo``...).
+        owns: the names (files and folders; shell patterns such as ``frame_*.png``) the
+            command writes in it.
+        arguments: what defines the run, for the manifest (plain values).
+        overwrite: clear what the command owns in a folder that holds something else.
+        resume: continue the command's own earlier run in the folder.
+        option: the command-line option the path came from, for the messages.
+
+    Raises:
+        OutputError: the path is a file or under one, cannot be written, or holds
+            something else and neither ``overwrite`` nor (for the command's own run)
+            ``resume`` was given.
+    """
+    folder = Path(path)
+    patterns = [*owns, MANIFEST]
+    check_folder(folder, command, patterns, overwrite=overwrite, resume=resume, option=option)
+    created = not folder.exists()
+    _make_folder(folder, option, folder)
+    if resume:
+        return ClaimedFolder(folder, command, resumed=True)
+    try:
+        for name in _owned(folder, patterns):
+            _remove(folder / name)
+        record = {
+            "command": command,
+            "arguments": dict(arguments or {}),
+            "started": _now(),
+            "complete": False,
+            "owns": list(patterns),
+        }
+        write_text_atomic(folder / MANIFEST, json.dumps(record, indent=2, default=str) + "\n")
+    except OSError as exc:
+        if created:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise OutputError(f"{option} {folder}: cannot be written ({exc.strerror or exc})") from exc
+    return ClaimedFolder(folder, command)
+
+
+def check_folder(
+    path: Path,
+    command: str,
+    owns: Iterable[str],
+    *,
+    overwrite: bool = False,
+    resume: bool = False,
+    option: str = "--out",
+) -> None:
+    """What :func:`claim_folder` checks, without writing anything: for a command that
+    claims its folder only once its work is done, to refuse a bad one before the work.
+
+    Raises:
+        OutputError: as :func:`claim_folder`.
+    """
+    folder = Path(path)
+    for parent in [folder, *folder.parents]:
+        if parent.exists():
+            if not parent.is_dir():
+                where = "is a file" if parent == folder else f"lies under the file {parent}"
+                raise OutputError(f"{option} {folder}: {where}; expected a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise OutputError(f"{option} {folder}: {parent} cannot be written")
+            break
+    if not folder.is_dir():
+        if resume:
+            raise OutputError(f"{option} {folder}: holds no `twin {command}` run to resume")
+        return
+    manifest = read_manifest(folder)
+    present = sorted(p.name for p in folder.iterdir())
+    if resume:
+        if manifest is not None and manifest.get("command") != command:
+            raise OutputError(
+                f"{option} {folder}: holds a `twin {manifest.get('command')}` run, not one "
+                f"of `twin {command}` to resume"
+            )
+        if not _owned(folder, [*owns, MANIFEST]):
+            raise OutputError(f"{option} {folder}: holds no `twin {command}` run to resume")
+    elif present and not overwrite:
+        raise OutputError(f"{option} {folder}: {_holds(manifest, present, command)}")
+
+
+def _owned(folder: Path, patterns: Iterable[str]) -> list[str]:
+    """The names in ``folder`` that match the command's patterns."""
+    patterns = list(patterns)
+    return sorted(
+        p.name for p in folder.iterdir() if any(fnmatch.fnmatch(p.name, q) for q in patterns)
+    )
+
+
+def _holds(manifest: dict[str, Any] | None, present: list[str], command: str) -> str:
+    """Why a folder is refused: what it holds and how to go on."""
+    if manifest is not None and "command" in manifest:
+        state = "a finished" if manifest.get("complete") else "an unfinished"
+        what = f"holds {state} `twin {manifest['command']}` run ({manifest.get('started', '?')})"
+    else:
+        shown = ", ".join(present[:5]) + (", ..." if len(present) > 5 else "")
+        what = f"is not empty ({shown})"
+    resume = command in RESUMABLE and manifest is not None and manifest.get("command") == command
+    again = "--resume to continue it, " if resume else ""
+    return (
+        f"{what}; pass {again}--overwrite to replace what `twin {command}` writes there, or "
+        "choose another folder"
+    )
+
+
+def _make_folder(folder: Path, option: str, path: Path) -> None:
+    for parent in [folder, *folder.parents]:
+        if parent.exists() and not parent.is_dir():
+            where = "is a file" if parent == path else f"lies under the file {parent}"
+            raise OutputError(f"{option} {path}: {where}; expected a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{option} {path}: cannot be created ({exc.strerror or exc})") from exc
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink()
+
+
+def write_text_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through a temporary file in the same folder and a
+    rename: a reader (or a run killed half-way) sees the old file or the new one, never
+    half."""
+    return write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> Path:
+    """:func:`write_text_atomic` for bytes."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
