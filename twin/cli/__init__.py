@@ -10,6 +10,11 @@ import argparse
 import importlib
 import sys
 
+from rich.console import Console
+
+from twin.interruption import EXIT_INTERRUPTED, interruptible
+from twin.outputs import OutputError
+
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
 _COMMANDS = ["calibrate", "scene", "render", "detect", "run", "montecarlo"]
 
@@ -27,9 +32,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``twin`` console script; returns the process exit code."""
+    """Entry point of the ``twin`` console script; returns the process exit code: 0, 2 for
+    bad input (a named error, nothing written), 130 when interrupted (Ctrl-C, SIGTERM,
+    SIGHUP), or the command's own (see its help)."""
     args = build_parser().parse_args(argv)
-    return int(args.func(args) or 0)
+    err = Console(stderr=True, highlight=False, soft_wrap=True)
+    try:
+        with interruptible():
+            return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:
+        err.print(f"interrupted ({exc or 'Ctrl-C'})", markup=False)
+        return EXIT_INTERRUPTED
+    except OutputError as exc:
+        err.print(f"error: {exc}", markup=False)
+        return 2
 
 
 if __name__ == "__main__":

@@ -26,11 +26,16 @@ from rich.markup import escape
 from rich.table import Table
 
 from calib.detection import DetectorConfig, LedDetections, SwitchingSequence, detect_leds
+from twin.cli import arguments
 from twin.cli.scene import load_or_report
+from twin.outputs import check_folder, claim_folder, write_text_atomic
 from twin.png import save_png
 
 # Exit code when the detector ran but found no LED (1 is Python's own for a crash).
 NO_LED_FOUND = 3
+
+OUTPUTS = ("detections.json", "overlay.png", "frame_*.png")
+"""What ``twin detect --out`` writes (and clears there with ``--overwrite``)."""
 
 SEQUENCES = {"one-at-a-time": SwitchingSequence.one_at_a_time, "binary": SwitchingSequence.binary}
 
@@ -56,10 +61,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="how the LEDs were switched: one at a time, or a constant-weight binary code "
         "(both with a dark frame first and last); default binary",
     )
-    p.add_argument("--leds", type=int, default=4, help="number of LEDs (default 4)")
+    p.add_argument(
+        "--leds", type=arguments.positive_int, default=4, help="number of LEDs (default 4)"
+    )
     p.add_argument(
         "--led-line",
-        type=float,
+        type=arguments.finite_float,
         nargs="+",
         metavar="M",
         help="positions of the LEDs along their mast, m (tells a hidden LED from one out of "
@@ -73,25 +80,44 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--saturation",
-        type=float,
+        type=arguments.positive_float,
         metavar="DN",
         help="the camera's full scale (default: 255 for 8-bit images, else the smallest "
         "2^k - 1 that holds the brightest pixel; the twin's sensor bits)",
     )
-    p.add_argument("--scenario", type=Path, help="capture the frames in this scenario's twin")
-    p.add_argument("--camera", help="the scenario's camera")
+    p.add_argument(
+        "--scenario", type=Path, help="capture the frames in this scenario's twin (default: none)"
+    )
+    p.add_argument("--camera", help="the scenario's camera (required with --scenario)")
     p.add_argument("--child", default=None, help="the child whose LEDs are used (default: first)")
     p.add_argument(
         "--at",
-        type=float,
+        type=arguments.finite_float,
         nargs="+",
         metavar="V",
         help="X Y [YAW_DEG]: where the child stands, m (default: facing the camera, its "
         "second LED --distance away on the image's middle column)",
     )
-    p.add_argument("--distance", type=float, default=5.0, help="see --at (m, default 5)")
-    p.add_argument("--seed", type=int, help="sensor-noise seed (default: the scenario's)")
-    p.add_argument("--out", type=Path, metavar="DIR", help="write detections and overlay here")
+    p.add_argument(
+        "--distance", type=arguments.positive_float, default=5.0, help="see --at (m, default 5)"
+    )
+    p.add_argument(
+        "--seed",
+        type=arguments.seed,
+        help="sensor-noise seed, 0 to 2^63 - 1 (default: the scenario's)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="write detections and overlay here, an empty or new folder (default: print only)",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
+        "not empty)",
+    )
     p.set_defaults(func=run)
 
 
@@ -103,11 +129,9 @@ def _error(message: str) -> int:
 def run(args: argparse.Namespace) -> int:
     """Detect and report; exit code 0, 2 for bad input, 3 when no LED was found."""
     console = Console(highlight=False, soft_wrap=True)
-    if args.leds < 1:
-        return _error(f"--leds must be at least 1, got {args.leds}")
+    if args.out is not None:  # a bad folder is refused before any work
+        check_folder(args.out, "detect", OUTPUTS, overwrite=args.overwrite)
     sequence = SEQUENCES[args.sequence](args.leds)
-    if args.saturation is not None and not args.saturation > 0:
-        return _error(f"--saturation must be positive, got {args.saturation:g}")
     saturation = args.saturation
     truth = None
     if args.scenario is not None:
@@ -136,12 +160,17 @@ def run(args: argparse.Namespace) -> int:
         result = detect_leds(frames, sequence, config=config, led_line=led_line)
     except ValueError as exc:
         return _error(f"cannot detect: {exc}")
+    folder = None
+    if args.out is not None:
+        record = arguments.recorded(args)
+        folder = claim_folder(args.out, "detect", OUTPUTS, record, overwrite=args.overwrite)
     console.print(f"{source}; {args.sequence} sequence, {sequence.n_frames} frames")
     _print_table(console, result, truth)
     for message in result.messages:
         console.print(f"note: {message}", markup=False)
-    if args.out is not None:
-        _write(args.out, frames, sequence, result, truth, console, save_frames=truth is not None)
+    if folder is not None:
+        _write(folder.path, frames, sequence, result, truth, console, truth is not None)
+        folder.finished()
     return 0 if result.found.any() else NO_LED_FOUND
 
 
@@ -169,6 +198,8 @@ def _capture(args: argparse.Namespace, sequence: SwitchingSequence, console: Con
     if sc is None:
         return 2
     names = [c.name for c in sc.cameras]
+    if args.camera is None:
+        return _error(f"--scenario needs --camera: one of {', '.join(names)}")
     if args.camera not in names:
         return _error(f"--camera {args.camera!r}: expected one of {', '.join(names)}")
     children = [c.name for c in sc.robots.children]
@@ -251,7 +282,6 @@ def _write(
     console: Console,
     save_frames: bool,
 ) -> None:
-    out.mkdir(parents=True, exist_ok=True)
     doc = {
         "sequence": sequence.pattern.astype(int).tolist(),
         "frame_gains": [float(g) for g in result.frame_gains],
@@ -289,7 +319,7 @@ def _write(
             for r in result.rejected
         ],
     }
-    (out / "detections.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_text_atomic(out / "detections.json", json.dumps(doc, indent=2) + "\n")
     lit = next(i for i, row in enumerate(sequence.pattern) if row.any())
     save_png(overlay(frames[lit], result, truth), out / "overlay.png")
     if save_frames:

@@ -16,14 +16,10 @@ from rich.progress import (
 )
 
 from twin.campaign.strategies import STRATEGIES
+from twin.cli import arguments
 from twin.cli.scene import load_or_report
-
-
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+from twin.interruption import EXIT_INTERRUPTED
+from twin.outputs import check_folder
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,13 +32,28 @@ def register(sub: argparse._SubParsersAction) -> None:
             "master seed and i alone), with all noise sources and, for the error budget, "
             "with each source alone. Writes DIR/trials.csv (a row per trial and camera "
             "visit, appended as trials finish), DIR/summary.json, DIR/figures/ and "
-            "DIR/report.md."
+            "DIR/report.md. Exit code 0; 1 when a trial failed (the finished ones are kept); "
+            "2 for bad input (nothing written); 130 when interrupted (Ctrl-C, SIGTERM: "
+            "--resume continues)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
-    p.add_argument("--trials", type=_positive, required=True, help="trials per configuration")
-    p.add_argument("--fidelity", choices=("geometric", "render"), default="geometric")
-    p.add_argument("--workers", type=_positive, default=1, help="processes or Ray CPUs")
+    p.add_argument(
+        "--trials", type=arguments.positive_int, required=True, help="trials per configuration"
+    )
+    p.add_argument(
+        "--fidelity",
+        choices=("geometric", "render"),
+        default="geometric",
+        help="geometric (default): robots placed with a stopping error, LEDs projected; "
+        "render: robots driven in MuJoCo, rendered images",
+    )
+    p.add_argument(
+        "--workers",
+        type=arguments.positive_int,
+        default=1,
+        help="processes (local) or Ray CPUs (default 1)",
+    )
     p.add_argument(
         "--engine",
         choices=("local", "ray"),
@@ -52,7 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--ray-address", help="address of an existing Ray cluster (default: start one here)"
     )
-    p.add_argument("--seed", type=int, help="master seed (default: the scenario's)")
+    p.add_argument(
+        "--seed", type=arguments.seed, help="master seed, 0 to 2^63 - 1 (default: the scenario's)"
+    )
     p.add_argument(
         "--strategy",
         choices=sorted(STRATEGIES),
@@ -62,20 +75,35 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-budget",
         action="store_true",
-        help="only trials with every noise source (no one-source runs, no budget)",
+        help="only trials with every noise source (no one-source runs, no budget; default: "
+        "the budget too)",
     )
-    p.add_argument("--out", type=Path, help="output folder (default: out/SCENARIO-montecarlo)")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out")
+    p.add_argument(
+        "--out", type=Path, help="output folder, empty or new (default: out/SCENARIO-montecarlo)"
+    )
+    again = p.add_mutually_exclusive_group()
+    again.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the Monte-Carlo run in --out (default: start one)",
+    )
+    again.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
+        "not empty)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run; exit code 0, 2 for an invalid scenario or settings."""
+    """Run; exit code 0, 1 when a trial failed, 2 for bad input, 130 when interrupted."""
     console = Console(highlight=False, soft_wrap=True)
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
     from twin.montecarlo import run_montecarlo
+    from twin.montecarlo.run import OUTPUTS
     from twin.montecarlo.sources import configurations
     from twin.montecarlo.trial import TrialFailed
 
@@ -83,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
         console.print("[red]error:[/red] --ray-address goes with --engine ray")
         return 2
     out = args.out or Path("out") / f"{sc.name}-montecarlo"
+    check_folder(out, "montecarlo", OUTPUTS, overwrite=args.overwrite, resume=args.resume)
     configs = configurations(not args.no_budget)
     console.print(
         f"{args.trials} trials x {len(configs)} configurations of [bold]{sc.name}[/bold] at "
@@ -123,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 progress=show,
                 strategy=args.strategy,
+                overwrite=args.overwrite,
             )
         except TrialFailed as exc:
             console.print(f"[red]error:[/red] {exc}", highlight=False)
@@ -131,8 +161,11 @@ def run(args: argparse.Namespace) -> int:
         except (ValueError, FileNotFoundError, RuntimeError) as exc:
             console.print(f"[red]error:[/red] {exc}")
             return 2
-        except KeyboardInterrupt:
-            console.print(f"interrupted: the finished trials are in {out}; --resume continues")
-            return 130
+        except KeyboardInterrupt as exc:
+            console.print(
+                f"interrupted ({exc or 'Ctrl-C'}): the finished trials are in {out}; "
+                "--resume continues"
+            )
+            return EXIT_INTERRUPTED
     console.print(f"table: {out / 'trials.csv'}\nreport: {out / 'report.md'}")
     return 0

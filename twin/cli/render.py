@@ -8,6 +8,7 @@ from pathlib import Path
 from rich.console import Console
 
 from twin.cli.scene import load_or_report
+from twin.outputs import check_file_target
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,11 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
     p.add_argument("--camera", required=True, help="camera name, e.g. cam1")
-    p.add_argument("--leds", choices=["on", "off"], default="off", help="the children's LEDs")
+    p.add_argument(
+        "--leds", choices=["on", "off"], default="off", help="the children's LEDs (default off)"
+    )
     p.add_argument(
         "--pinhole",
         action="store_true",
-        help="MuJoCo's pinhole image, without the lens and sensor models",
+        help="MuJoCo's pinhole image, without the lens and sensor models (default: through them)",
     )
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png", help="output image")
     p.set_defaults(func=run)
@@ -41,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
+    check_file_target(args.out, "--out")
     names = [c.name for c in sc.cameras]
     if args.camera not in names:
         Console(stderr=True, highlight=False).print(

@@ -11,7 +11,9 @@ from rich.live import Live
 from rich.table import Table
 
 from twin.campaign.strategies import STRATEGIES, strategy_for
+from twin.cli import arguments
 from twin.cli.scene import load_or_report
+from twin.interruption import EXIT_INTERRUPTED
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Run the paper's calibration campaign on a scenario: reference data sets from the "
             "first station, CPS travel along the route, a calibration at every visit. Writes "
             "DIR/log.mcap (every reading, as it arrives), DIR/results.json, DIR/cameras/, "
-            "DIR/figures/ and DIR/report.md."
+            "DIR/figures/ and DIR/report.md. Exit code 0; 1 when no camera was calibrated; 2 "
+            "for bad input (nothing written); 130 when interrupted (Ctrl-C, SIGTERM: the log "
+            "so far is kept)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
@@ -34,16 +38,36 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="render: robots driven in MuJoCo, rendered images, LED detection (default); "
         "geometric: robots placed with a stopping error, LEDs projected with detection noise",
     )
-    p.add_argument("--seed", type=int, help="root seed of the run (default: the scenario's)")
+    p.add_argument(
+        "--seed",
+        type=arguments.seed,
+        help="root seed of the run, 0 to 2^63 - 1 (default: the scenario's)",
+    )
     p.add_argument(
         "--strategy",
         choices=sorted(STRATEGIES),
         help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
         "(default: the scenario's campaign.strategy, itself paper by default)",
     )
-    p.add_argument("--out", type=Path, help="output folder (default: out/SCENARIO-FIDELITY)")
-    p.add_argument("--no-noise", action="store_true", help="switch every noise source off")
-    p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
+    p.add_argument(
+        "--out",
+        type=Path,
+        help="output folder, empty or new (default: out/SCENARIO-FIDELITY)",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
+        "not empty)",
+    )
+    p.add_argument(
+        "--no-noise", action="store_true", help="switch every noise source off (default: on)"
+    )
+    p.add_argument(
+        "--no-report",
+        action="store_true",
+        help="skip the figures and report.md (default: write them)",
+    )
     p.set_defaults(func=run)
 
 
@@ -69,7 +93,8 @@ class _Display:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run; exit code 0, 2 for an invalid scenario, 1 when no camera was calibrated."""
+    """Run; exit code 0, 1 when no camera was calibrated, 2 for bad input, 130 when
+    interrupted."""
     console = Console(highlight=False, soft_wrap=True)
     sc = load_or_report(args.scenario, console)
     if sc is None:
@@ -86,17 +111,24 @@ def run(args: argparse.Namespace) -> int:
         f"running [bold]{sc.name}[/bold] at the {args.fidelity} fidelity with the {strategy} "
         f"strategy into {out}"
     )
-    with Live(console=console, refresh_per_second=4, transient=True) as live:
-        results = run_scenario(
-            sc,
-            out,
-            fidelity=args.fidelity,
-            seed=args.seed,
-            noise=not args.no_noise,
-            progress=_Display(live),
-            report=not args.no_report,
-            strategy=strategy,
-        )
+    try:
+        with Live(console=console, refresh_per_second=4, transient=True) as live:
+            results = run_scenario(
+                sc,
+                out,
+                fidelity=args.fidelity,
+                seed=args.seed,
+                noise=not args.no_noise,
+                progress=_Display(live),
+                report=not args.no_report,
+                strategy=strategy,
+                overwrite=args.overwrite,
+            )
+    except KeyboardInterrupt as exc:
+        log = out / "log.mcap"
+        kept = f"the log of the run so far is {log}" if log.exists() else "nothing was written"
+        console.print(f"interrupted ({exc or 'Ctrl-C'}): {kept}; no results were computed")
+        return EXIT_INTERRUPTED
     print_results(results, console)
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")

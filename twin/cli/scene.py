@@ -10,6 +10,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from twin.outputs import check_file_target
 from twin.scenario import Scenario, ScenarioError, load_scenario
 from twin.scenario.geometry import floor_view_corners, polygon_area
 
@@ -26,7 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
-    p.add_argument("--export", type=Path, metavar="FILE.xml", help="write the scene as MJCF")
+    p.add_argument(
+        "--export",
+        type=Path,
+        metavar="FILE.xml",
+        help="write the scene as MJCF (default: do not write it)",
+    )
     p.set_defaults(func=run)
 
 
@@ -45,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
+    if args.export:
+        check_file_target(args.export, "--export")
     from twin.sim.world import build_world
 
     world = build_world(sc)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
@@ -21,11 +23,31 @@ RAY_MISSING = (
 )
 
 
+PARENT_POLL = 0.5
+"""How often a worker checks that the process that started it is still there, s."""
+
+
+def watch_parent(parent_pid: int) -> None:
+    """Make this process end when ``parent_pid`` is no longer its parent (it was killed,
+    with -9 say, and this process was handed to another): a daemon thread checks every
+    :data:`PARENT_POLL` seconds. The pool's workers run it as they start, so that none is
+    left running, orphaned, after its parent is gone."""
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="watch-parent", daemon=True).start()
+
+
 class LocalEngine:
     """A pool of ``workers`` processes on this machine (one worker: in this process).
 
     Workers are started with ``spawn`` (a fresh interpreter, safe with MuJoCo's OpenGL);
     at most twice as many items as workers are in flight, so an interrupt loses little.
+    Workers end with their parent (:func:`watch_parent`), and an interrupt ends the ones
+    at work at once instead of waiting for their trials.
     """
 
     def __init__(self, workers: int = 1) -> None:
@@ -40,7 +62,12 @@ class LocalEngine:
                 yield fn(item)
             return
         ctx = multiprocessing.get_context("spawn")
-        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+        self._pool = ProcessPoolExecutor(
+            max_workers=self.workers,
+            mp_context=ctx,
+            initializer=watch_parent,
+            initargs=(os.getpid(),),
+        )
         pending: set[Future] = set()
         todo = iter(items)
         try:
@@ -55,8 +82,25 @@ class LocalEngine:
                     if nxt is not None:
                         pending.add(self._pool.submit(fn, nxt))
                     yield f.result()
+        except BaseException:
+            self._terminate()
+            raise
         finally:
             self.close()
+
+    def _terminate(self) -> None:
+        """End the workers now (an interrupt or an error: their trials are not wanted)."""
+        if self._pool is None:
+            return
+        # ProcessPoolExecutor has no public way to end its workers before Python 3.14's
+        # terminate_workers(); its table of processes is the way round.
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join(timeout=5)
+        self._pool = None
 
     def close(self) -> None:
         if self._pool is not None:
@@ -107,6 +151,19 @@ class RayEngine:
             self._started = False
 
 
+def engine_check(name: str, address: str | None = None) -> None:
+    """Refuse an unknown engine, or an address with the local engine, before anything
+    starts.
+
+    Raises:
+        ValueError: naming the problem.
+    """
+    if name not in ENGINES:
+        raise ValueError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")
+    if name == "local" and address is not None:
+        raise ValueError("--ray-address goes with --engine ray")
+
+
 def make_engine(name: str, workers: int = 1, address: str | None = None) -> Any:
     """The engine called ``name`` (``local`` or ``ray``).
 
@@ -114,10 +171,7 @@ def make_engine(name: str, workers: int = 1, address: str | None = None) -> Any:
         ValueError: for an unknown engine, or an address with the local engine.
         RuntimeError: for ``ray`` when Ray is not installed (saying how to install it).
     """
+    engine_check(name, address)
     if name == "local":
-        if address is not None:
-            raise ValueError("--ray-address goes with --engine ray")
         return LocalEngine(workers)
-    if name == "ray":
-        return RayEngine(workers, address)
-    raise ValueError(f"unknown engine {name!r}; choose one of {', '.join(ENGINES)}")
+    return RayEngine(workers, address)

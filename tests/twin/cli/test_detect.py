@@ -7,6 +7,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pytest
 
 from twin.cli import main
 
@@ -109,12 +110,17 @@ def test_bad_inputs(tmp_path, capsys):
             ["detect", "--scenario", str(LED_RANGE), "--camera", "near", "--at", "1"],
             "X Y [YAW_DEG]",
         ),
-        (["detect", "--leds", "0", str(img)], "at least 1"),
         (["detect", *[str(img)] * 6, "--camera", "near"], "need --scenario"),
+        (["detect", "--scenario", str(LED_RANGE)], "--scenario needs --camera: one of near"),
     ]
     for argv, message in cases:
         assert main(argv) == 2, argv
         assert message in capsys.readouterr().err, argv
+    # A number out of range is refused by the argument's type, before anything runs.
+    with pytest.raises(SystemExit) as exit_:
+        main(["detect", "--leds", "0", str(img)])
+    assert exit_.value.code == 2
+    assert "argument --leds: must be at least 1" in capsys.readouterr().err
 
 
 def test_detect_on_image_files_needs_no_opengl(tmp_path):

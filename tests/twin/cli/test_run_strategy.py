@@ -42,3 +42,16 @@ def test_the_strategy_is_in_the_results(tmp_path):
     assert main([*args, "--out", str(out)]) == 0
     results = json.loads((out / "results.json").read_text())
     assert results["strategy"] == "paper"
+
+
+def test_a_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys):
+    # The only visit's station is unreachable: the run finishes and calibrates nothing.
+    text = SMOKE.read_text().replace("[route]", "[faults]\nunreachable = [[0.5, 0.0]]\n\n[route]")
+    scenario = tmp_path / "blocked.toml"
+    scenario.write_text(text)
+    out = tmp_path / "run"
+    args = ["run", str(scenario), "--fidelity", "geometric", "--no-report", "--out", str(out)]
+    assert main(args) == 1
+    results = json.loads((out / "results.json").read_text())
+    assert results["calibrations"] == []
+    assert results["skipped_visits"][0]["reason"] == "station_unreachable"

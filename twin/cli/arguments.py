@@ -1,0 +1,69 @@
+"""Argument types shared by the commands: each refuses a bad value with a message that
+says what was expected (argparse then names the option and exits with code 2)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+SEED_MAX = 2**63 - 1
+"""The largest seed accepted: any non-negative integer up to this is a valid root of
+numpy's SeedSequence, and survives JSON, CSV and MCAP as an exact integer."""
+
+
+def seed(text: str) -> int:
+    """A random seed: an integer from 0 to :data:`SEED_MAX`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= value <= SEED_MAX:
+        raise argparse.ArgumentTypeError(f"expected 0 to 2^63 - 1, got {value}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """A whole number of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number above 0, got {text}")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """A finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
+    return value
+
+
+def recorded(args: argparse.Namespace) -> dict[str, object]:
+    """A command's arguments as plain values, for the manifest of its output folder."""
+    out: dict[str, object] = {}
+    for key, value in vars(args).items():
+        if callable(value):
+            continue
+        if isinstance(value, list | tuple):
+            out[key] = [v if isinstance(v, int | float | bool | str) else str(v) for v in value]
+        else:
+            plain = value is None or isinstance(value, int | float | bool | str)
+            out[key] = value if plain else str(value)
+    return out
