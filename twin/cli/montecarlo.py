@@ -39,7 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
     p.add_argument(
-        "--trials", type=arguments.positive_int, required=True, help="trials per configuration"
+        "--trials",
+        type=arguments.positive_int,
+        required=True,
+        help="trials per configuration (required)",
     )
     p.add_argument(
         "--fidelity",

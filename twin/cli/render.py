@@ -25,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
-    p.add_argument("--camera", required=True, help="camera name, e.g. cam1")
+    p.add_argument("--camera", required=True, help="camera name, e.g. cam1 (required)")
     p.add_argument(
         "--leds", choices=["on", "off"], default="off", help="the children's LEDs (default off)"
     )
@@ -34,7 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="MuJoCo's pinhole image, without the lens and sensor models (default: through them)",
     )
-    p.add_argument("--out", type=Path, required=True, metavar="FILE.png", help="output image")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="FILE.png", help="output image (required)"
+    )
     p.set_defaults(func=run)
 
 
