@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "master seed and i alone), with all noise sources and, for the error budget, "
             "with each source alone. Writes DIR/trials.csv (a row per trial and camera "
             "visit, appended as trials finish), DIR/summary.json, DIR/figures/ and "
-            "DIR/report.md. Exit code 0; 1 when a trial failed (the finished ones are kept); "
+            "DIR/report.md. Exit code 0; 1 when a trial failed (the finished ones are kept) "
+            "or no trial calibrated a camera; "
             "2 for bad input (nothing written); 130 when interrupted (Ctrl-C, SIGTERM: "
             "--resume continues)."
         ),
@@ -100,7 +101,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run; exit code 0, 1 when a trial failed, 2 for bad input, 130 when interrupted."""
+    """Run; exit code 0, 1 when a trial failed or none calibrated a camera, 2 for bad
+    input, 130 when interrupted."""
     console = Console(highlight=False, soft_wrap=True)
     sc = load_or_report(args.scenario, console)
     if sc is None:
@@ -142,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
             )
 
         try:
-            run_montecarlo(
+            rows = run_montecarlo(
                 sc,
                 out,
                 args.trials,
@@ -171,4 +173,7 @@ def run(args: argparse.Namespace) -> int:
             )
             return EXIT_INTERRUPTED
     console.print(f"table: {out / 'trials.csv'}\nreport: {out / 'report.md'}")
+    if not any(r["calibrated"] for r in rows):
+        console.print("[red]no trial calibrated any camera[/red]: see the report's failures")
+        return 1
     return 0

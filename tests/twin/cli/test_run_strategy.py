@@ -55,3 +55,14 @@ def test_a_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys):
     results = json.loads((out / "results.json").read_text())
     assert results["calibrations"] == []
     assert results["skipped_visits"][0]["reason"] == "station_unreachable"
+
+
+def test_a_monte_carlo_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys):
+    text = SMOKE.read_text().replace("[route]", "[faults]\nunreachable = [[0.5, 0.0]]\n\n[route]")
+    scenario = tmp_path / "blocked.toml"
+    scenario.write_text(text)
+    out = tmp_path / "mc"
+    args = ["montecarlo", str(scenario), "--trials", "2", "--no-budget", "--out", str(out)]
+    assert main(args) == 1
+    assert "no trial calibrated any camera" in " ".join(capsys.readouterr().out.split())
+    assert (out / "summary.json").exists()
