@@ -18,6 +18,11 @@ class DegenerateGeometryWarning(UserWarning):
     """The point geometry is not singular but poorly conditioned; results may be inaccurate."""
 
 
+class InputWarning(UserWarning):
+    """The input has a property a user should know of: rows that are exact copies of others,
+    or magnitudes a real camera would not produce (coordinates in the wrong unit)."""
+
+
 def _check_finite(arr: NDArray[np.float64], name: str) -> None:
     bad = ~np.isfinite(arr)
     if bad.any():

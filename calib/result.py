@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.checks import DegenerateGeometryWarning
+from calib.checks import DegenerateGeometryWarning, InputWarning
 from calib.covariance import least_squares_covariance, propagate_covariance
+from calib.duplicates import duplicates_note
 from calib.metrics import Metrics, evaluate
 
 
@@ -31,7 +32,11 @@ class CalibrationResult:
         dof: degrees of freedom of the fit (2N - number of free parameters).
         metrics: Table III metrics on the calibration data themselves.
         initial_camera: the camera from the closed-form stages (None if not applicable).
-        notes: messages a user should read (few degrees of freedom, poor conditioning).
+        notes: messages a user should read (few degrees of freedom, poor conditioning,
+            duplicate rows).
+        duplicates: number of input rows that repeated an earlier row exactly (same x, y,
+            z, u, v); merged unless ``duplicates_kept``.
+        duplicates_kept: the duplicates were fitted as independent measurements.
     """
 
     model: str
@@ -44,6 +49,8 @@ class CalibrationResult:
     metrics: Metrics
     initial_camera: Any = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    duplicates: int = 0
+    duplicates_kept: bool = False
 
     @property
     def std(self) -> NDArray[np.float64]:
@@ -107,6 +114,9 @@ def result_from_fit(
     points_3d: NDArray[np.float64],
     pixels: NDArray[np.float64],
     initial_camera: Any = None,
+    *,
+    duplicates: int = 0,
+    duplicates_kept: bool = False,
 ) -> CalibrationResult:
     """Turn a least-squares solution into a result.
 
@@ -122,6 +132,8 @@ def result_from_fit(
         steps: (Q,) finite-difference steps for the propagation.
         points_3d, pixels: the correspondences, (N, 3) m and (N, 2) px.
         initial_camera: the closed-form start, if any.
+        duplicates: number of input rows that repeated an earlier one exactly.
+        duplicates_kept: whether those rows are among ``points_3d`` and ``pixels``.
     """
     cov_q, sigma2, dof = least_squares_covariance(jac, residuals)
     angle_mask = np.isin(names, ("rx", "ry", "rz"))
@@ -131,6 +143,10 @@ def result_from_fit(
     notes = fit_notes(dof, condition, sigma if dof > 0 else 0.0)
     for n in notes:
         warnings.warn(n, DegenerateGeometryWarning, stacklevel=3)
+    if duplicates:
+        n_rows = len(points_3d) + (0 if duplicates_kept else duplicates)
+        notes.append(duplicates_note(duplicates, n_rows, duplicates_kept))
+        warnings.warn(notes[-1], InputWarning, stacklevel=3)
     return CalibrationResult(
         model=model,
         camera=camera,
@@ -142,4 +158,6 @@ def result_from_fit(
         metrics=evaluate(camera, points_3d, pixels),
         initial_camera=initial_camera,
         notes=tuple(notes),
+        duplicates=duplicates,
+        duplicates_kept=duplicates_kept,
     )

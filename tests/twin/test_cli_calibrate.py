@@ -136,3 +136,31 @@ def test_points_csv_round_trip(tmp_path_factory, rows, units) -> None:
     # Written with 6 decimals in the file's units and 4 decimals in pixels.
     assert_allclose(p3, pts, atol=(1e-6 if units == "m" else 1e-9) * 0.51)
     assert_allclose(uv, arr[:, 3:], atol=0.51e-4)
+
+
+def test_duplicated_rows_are_merged_and_reported(tmp_path, capsys) -> None:
+    # Every row of the example twice: the same std as the example, and the count reported.
+    lines = EXAMPLE.read_text().splitlines()
+    twice = tmp_path / "twice.csv"
+    twice.write_text("\n".join([lines[0], *(row for row in lines[1:] for _ in (0, 1))]) + "\n")
+    args = ["--image-size", "320", "240", "--units", "mm"]
+    assert calibrate(str(EXAMPLE), *args, "--json", str(tmp_path / "once.json")) == 0
+    assert calibrate(str(twice), *args, "--json", str(tmp_path / "twice.json")) == 0
+    printed = capsys.readouterr().out
+    assert "70 duplicate rows merged" in printed
+    assert "a copy of a row is not a second measurement" in printed.replace("\n", " ")
+    once = json.loads((tmp_path / "once.json").read_text())
+    merged = json.loads((tmp_path / "twice.json").read_text())
+    assert merged["std"].keys() == once["std"].keys()
+    for key, std in once["std"].items():
+        assert_allclose(merged["std"][key], std, rtol=1e-12, err_msg=key)
+    assert (merged["n_points"], merged["duplicates"], merged["duplicates_merged"]) == (70, 70, True)
+    assert (once["duplicates"], once["duplicates_merged"]) == (0, False)
+    assert any("70 of the 140 correspondences" in note for note in merged["notes"])
+    # Kept on request: counted, and the std shrink as for 140 independent rows.
+    assert (
+        calibrate(str(twice), *args, "--keep-duplicates", "--json", str(tmp_path / "k.json")) == 0
+    )
+    kept = json.loads((tmp_path / "k.json").read_text())
+    assert (kept["n_points"], kept["duplicates"], kept["duplicates_merged"]) == (140, 70, False)
+    assert kept["std"]["f_px"] < 0.75 * once["std"]["f_px"]

@@ -47,6 +47,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write the camera: .json, .yaml (OpenCV) or .camera_info.yaml (ROS)",
     )
     p.add_argument("--json", type=Path, dest="json_out", help="write the result as JSON")
+    p.add_argument(
+        "--keep-duplicates",
+        action="store_true",
+        help="fit rows that repeat an earlier row exactly (same x,y,z,u,v) as independent "
+        "measurements; by default they are merged, since a copy of a row is not a second "
+        "measurement and counting it twice would shrink every standard deviation",
+    )
     p.set_defaults(func=run)
 
 
@@ -84,6 +91,8 @@ def result_to_dict(
         "units": units,
         "image_size": list(result.camera.image_size),
         "n_points": result.n_points,
+        "duplicates": result.duplicates,
+        "duplicates_merged": bool(result.duplicates) and not result.duplicates_kept,
         "dof": result.dof,
         "sigma_px": result.sigma_px,
         "parameters": params,
@@ -110,7 +119,8 @@ def _fmt(v: float) -> str:
 def print_result(console: Console, d: dict[str, Any], source: str) -> None:
     """Print the parameter and metric tables of a result dictionary."""
     units = d["units"]
-    t = Table(title=f"{d['model']} calibration of {source} ({d['n_points']} points)")
+    merged = f"; {d['duplicates']} duplicate rows merged" if d["duplicates_merged"] else ""
+    t = Table(title=f"{d['model']} calibration of {source} ({d['n_points']} points{merged})")
     t.add_column("parameter")
     t.add_column("value", justify="right")
     t.add_column("std", justify="right")
@@ -151,10 +161,17 @@ def run(args: argparse.Namespace) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # notes are printed with the result
             if args.model == "tsai":
-                result = calibrate_tsai(points, pixels, tuple(args.image_size))
+                result = calibrate_tsai(
+                    points, pixels, tuple(args.image_size), keep_duplicates=args.keep_duplicates
+                )
             else:
                 result = calibrate_opencv(
-                    points, pixels, tuple(args.image_size), tangential=args.tangential, k3=args.k3
+                    points,
+                    pixels,
+                    tuple(args.image_size),
+                    tangential=args.tangential,
+                    k3=args.k3,
+                    keep_duplicates=args.keep_duplicates,
                 )
     except ValueError as exc:
         err.print(f"[red]error:[/red] {exc}", highlight=False)
