@@ -14,6 +14,7 @@ from calib.checks import DegenerateGeometryWarning, InputWarning
 from calib.covariance import least_squares_covariance, propagate_covariance
 from calib.duplicates import duplicates_note
 from calib.metrics import Metrics, evaluate
+from calib.plausibility import Implausibility, check_magnitudes
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,6 +38,8 @@ class CalibrationResult:
         duplicates: number of input rows that repeated an earlier row exactly (same x, y,
             z, u, v); merged unless ``duplicates_kept``.
         duplicates_kept: the duplicates were fitted as independent measurements.
+        implausible: magnitudes no real calibration produces (a camera kilometres from
+            its points: coordinates in the wrong unit); their notes are among ``notes``.
     """
 
     model: str
@@ -51,6 +54,7 @@ class CalibrationResult:
     notes: tuple[str, ...] = field(default_factory=tuple)
     duplicates: int = 0
     duplicates_kept: bool = False
+    implausible: tuple[Implausibility, ...] = ()
 
     @property
     def std(self) -> NDArray[np.float64]:
@@ -102,6 +106,15 @@ def fit_notes(dof: int, condition: float, sigma_px: float = 0.0) -> list[str]:
     return notes
 
 
+def _implausible(camera: Any, points_3d: NDArray[np.float64]) -> list[Implausibility]:
+    """:func:`check_magnitudes` for a Tsai or an OpenCV camera."""
+    if hasattr(camera, "kappa1"):
+        f, sx, kappa1 = float(camera.f), float(camera.sx), float(camera.kappa1)
+    else:
+        f, sx, kappa1 = float(camera.fy), float(camera.fx / camera.fy), None
+    return check_magnitudes(camera.position, f, sx, camera.image_size, points_3d, kappa1)
+
+
 def result_from_fit(
     model: str,
     camera: Any,
@@ -122,7 +135,8 @@ def result_from_fit(
 
     The covariance of the internal parameters q is sigma^2 (J^T J)^-1; it is propagated to
     the reported parameters ``reported(q)`` (whose rotation angles are named rx, ry, rz),
-    the Table III metrics are evaluated, and the notes are emitted as warnings.
+    the Table III metrics are evaluated, the magnitudes are checked for plausibility
+    (:mod:`calib.plausibility`), and the notes are emitted as warnings.
 
     Args:
         model: the model's name. camera: the calibrated camera.
@@ -147,6 +161,10 @@ def result_from_fit(
         n_rows = len(points_3d) + (0 if duplicates_kept else duplicates)
         notes.append(duplicates_note(duplicates, n_rows, duplicates_kept))
         warnings.warn(notes[-1], InputWarning, stacklevel=3)
+    implausible = _implausible(camera, points_3d)
+    for finding in implausible:
+        notes.append(finding.note)
+        warnings.warn(finding.note, InputWarning, stacklevel=3)
     return CalibrationResult(
         model=model,
         camera=camera,
@@ -160,4 +178,5 @@ def result_from_fit(
         notes=tuple(notes),
         duplicates=duplicates,
         duplicates_kept=duplicates_kept,
+        implausible=tuple(implausible),
     )
