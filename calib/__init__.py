@@ -5,7 +5,7 @@ Pure numpy / scipy / OpenCV; nothing here knows about MuJoCo or the robots.
 """
 
 from calib.camera import TsaiCamera, project_tsai
-from calib.checks import DegenerateGeometryWarning
+from calib.checks import DegenerateGeometryWarning, InputWarning
 from calib.detection import (
     DetectionFailure,
     DetectorConfig,
@@ -26,6 +26,7 @@ __all__ = [
     "DegenerateGeometryWarning",
     "DetectionFailure",
     "DetectorConfig",
+    "InputWarning",
     "LedDetection",
     "LedDetections",
     "Metrics",

@@ -12,10 +12,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 SPREAD_WARNING = 100.0  # condition number of the point cloud above which we warn
+# The widest image side accepted, px: the largest sensors have about 15,000 pixels a side,
+# and OpenCV takes image sizes as 32-bit integers.
+MAX_IMAGE_SIDE_PX = 100_000
 
 
 class DegenerateGeometryWarning(UserWarning):
     """The point geometry is not singular but poorly conditioned; results may be inaccurate."""
+
+
+class InputWarning(UserWarning):
+    """The input has a property a user should know of: rows that are exact copies of others,
+    or magnitudes a real camera would not produce (coordinates in the wrong unit)."""
 
 
 def _check_finite(arr: NDArray[np.float64], name: str) -> None:
@@ -71,13 +79,18 @@ def check_min_points(n: int, needed: int, what: str) -> None:
 
 
 def check_image_size(image_size: tuple[int, int]) -> tuple[int, int]:
-    """Check an image size (width, height) in pixels: two positive integers."""
+    """Check an image size (width, height) in pixels: two positive integers, each at most
+    ``MAX_IMAGE_SIDE_PX``."""
     try:
         w, h = (int(v) for v in image_size)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"image_size must be (width, height), got {image_size!r}") from None
     if w <= 0 or h <= 0 or (w, h) != tuple(image_size):
         raise ValueError(f"image_size must be two positive integers, got {image_size!r}")
+    if max(w, h) > MAX_IMAGE_SIDE_PX:
+        raise ValueError(
+            f"image_size must be at most {MAX_IMAGE_SIDE_PX} px a side, got {image_size!r}"
+        )
     return w, h
 
 

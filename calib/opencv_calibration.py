@@ -21,6 +21,7 @@ from calib.checks import (
     check_spread,
 )
 from calib.covariance import central_jacobian
+from calib.duplicates import drop_duplicates
 from calib.opencv_camera import DIST_NAMES, OpenCVCamera
 from calib.result import CalibrationResult, result_from_fit
 from calib.rotation import matrix2euler, matrix2rotvec, rotvec2matrix
@@ -44,6 +45,7 @@ def calibrate_opencv(
     *,
     tangential: bool = False,
     k3: bool = False,
+    keep_duplicates: bool = False,
 ) -> CalibrationResult:
     """Calibrate in OpenCV's model (fx, fy, cx, cy, k1, k2[, p1, p2][, k3], pose).
 
@@ -53,6 +55,8 @@ def calibrate_opencv(
         image_size: (width, height), px.
         tangential: also estimate p1 and p2 (fixed at 0 by default).
         k3: also estimate k3 (fixed at 0 by default: it is unstable with few points).
+        keep_duplicates: fit exact duplicate rows as independent measurements (by default
+            they are merged and noted; see :mod:`calib.duplicates`).
 
     Returns:
         The OpenCVCamera and the parameters fx, fy, cx, cy, the free distortion
@@ -61,6 +65,7 @@ def calibrate_opencv(
     """
     p3, uv = check_correspondences(points_3d, pixels)
     size = check_image_size(image_size)
+    p3, uv, duplicates = drop_duplicates(p3, uv, keep_duplicates)
     free = _free_dist(tangential, k3)
     n_par = 4 + len(free) + 6
     check_min_points(
@@ -144,4 +149,17 @@ def calibrate_opencv(
         "z",
     )
     j = central_jacobian(residual, q, steps)
-    return result_from_fit("opencv", cam, names, q, j, residual(q), reported, steps, p3, uv)
+    return result_from_fit(
+        "opencv",
+        cam,
+        names,
+        q,
+        j,
+        residual(q),
+        reported,
+        steps,
+        p3,
+        uv,
+        duplicates=duplicates,
+        duplicates_kept=keep_duplicates,
+    )

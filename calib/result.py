@@ -10,9 +10,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.checks import DegenerateGeometryWarning
+from calib.checks import DegenerateGeometryWarning, InputWarning
 from calib.covariance import least_squares_covariance, propagate_covariance
+from calib.duplicates import duplicates_note
 from calib.metrics import Metrics, evaluate
+from calib.plausibility import Implausibility, check_magnitudes
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,7 +33,13 @@ class CalibrationResult:
         dof: degrees of freedom of the fit (2N - number of free parameters).
         metrics: Table III metrics on the calibration data themselves.
         initial_camera: the camera from the closed-form stages (None if not applicable).
-        notes: messages a user should read (few degrees of freedom, poor conditioning).
+        notes: messages a user should read (few degrees of freedom, poor conditioning,
+            duplicate rows).
+        duplicates: number of input rows that repeated an earlier row exactly (same x, y,
+            z, u, v); merged unless ``duplicates_kept``.
+        duplicates_kept: the duplicates were fitted as independent measurements.
+        implausible: magnitudes no real calibration produces (a camera kilometres from
+            its points: coordinates in the wrong unit); their notes are among ``notes``.
     """
 
     model: str
@@ -44,6 +52,9 @@ class CalibrationResult:
     metrics: Metrics
     initial_camera: Any = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    duplicates: int = 0
+    duplicates_kept: bool = False
+    implausible: tuple[Implausibility, ...] = ()
 
     @property
     def std(self) -> NDArray[np.float64]:
@@ -95,6 +106,15 @@ def fit_notes(dof: int, condition: float, sigma_px: float = 0.0) -> list[str]:
     return notes
 
 
+def _implausible(camera: Any, points_3d: NDArray[np.float64]) -> list[Implausibility]:
+    """:func:`check_magnitudes` for a Tsai or an OpenCV camera."""
+    if hasattr(camera, "kappa1"):
+        f, sx, kappa1 = float(camera.f), float(camera.sx), float(camera.kappa1)
+    else:
+        f, sx, kappa1 = float(camera.fy), float(camera.fx / camera.fy), None
+    return check_magnitudes(camera.position, f, sx, camera.image_size, points_3d, kappa1)
+
+
 def result_from_fit(
     model: str,
     camera: Any,
@@ -107,12 +127,16 @@ def result_from_fit(
     points_3d: NDArray[np.float64],
     pixels: NDArray[np.float64],
     initial_camera: Any = None,
+    *,
+    duplicates: int = 0,
+    duplicates_kept: bool = False,
 ) -> CalibrationResult:
     """Turn a least-squares solution into a result.
 
     The covariance of the internal parameters q is sigma^2 (J^T J)^-1; it is propagated to
     the reported parameters ``reported(q)`` (whose rotation angles are named rx, ry, rz),
-    the Table III metrics are evaluated, and the notes are emitted as warnings.
+    the Table III metrics are evaluated, the magnitudes are checked for plausibility
+    (:mod:`calib.plausibility`), and the notes are emitted as warnings.
 
     Args:
         model: the model's name. camera: the calibrated camera.
@@ -122,6 +146,8 @@ def result_from_fit(
         steps: (Q,) finite-difference steps for the propagation.
         points_3d, pixels: the correspondences, (N, 3) m and (N, 2) px.
         initial_camera: the closed-form start, if any.
+        duplicates: number of input rows that repeated an earlier one exactly.
+        duplicates_kept: whether those rows are among ``points_3d`` and ``pixels``.
     """
     cov_q, sigma2, dof = least_squares_covariance(jac, residuals)
     angle_mask = np.isin(names, ("rx", "ry", "rz"))
@@ -131,6 +157,14 @@ def result_from_fit(
     notes = fit_notes(dof, condition, sigma if dof > 0 else 0.0)
     for n in notes:
         warnings.warn(n, DegenerateGeometryWarning, stacklevel=3)
+    if duplicates:
+        n_rows = len(points_3d) + (0 if duplicates_kept else duplicates)
+        notes.append(duplicates_note(duplicates, n_rows, duplicates_kept))
+        warnings.warn(notes[-1], InputWarning, stacklevel=3)
+    implausible = _implausible(camera, points_3d)
+    for finding in implausible:
+        notes.append(finding.note)
+        warnings.warn(finding.note, InputWarning, stacklevel=3)
     return CalibrationResult(
         model=model,
         camera=camera,
@@ -142,4 +176,7 @@ def result_from_fit(
         metrics=evaluate(camera, points_3d, pixels),
         initial_camera=initial_camera,
         notes=tuple(notes),
+        duplicates=duplicates,
+        duplicates_kept=duplicates_kept,
+        implausible=tuple(implausible),
     )

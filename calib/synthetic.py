@@ -120,3 +120,37 @@ def led_points(
         if count >= n_points:
             return np.vstack(out)[:n_points]
     raise ValueError(f"could not place {n_points} LED points in the view of the camera")
+
+
+def points_in_view(
+    camera: TsaiCamera,
+    n_points: int,
+    rng: np.random.Generator,
+    *,
+    depth_m: tuple[float, float] = (3.0, 15.0),
+    margin_px: float = 4.0,
+) -> NDArray[np.float64]:
+    """World points scattered through the camera's view, drawn all at once.
+
+    Each point lies on the line of sight of a pixel drawn uniformly over the image (inside
+    ``margin_px``), at a depth z_c drawn uniformly from ``depth_m``: a cloud that fills the
+    view in 3D, for any number of points in time and memory linear in ``n_points`` (unlike
+    :func:`led_points`, which places one robot at a time).
+
+    Args:
+        camera: the camera whose view is sampled.
+        n_points: number of points to return.
+        rng: random generator.
+        depth_m: (near, far) range of the depth z_c in the camera frame, m.
+        margin_px: keep the projected points this far inside the image, px.
+
+    Returns:
+        (n_points, 3) world points, m; each projects inside the image.
+    """
+    w, h = camera.image_size
+    lo = margin_px - 0.5
+    uv = rng.uniform((lo, lo), (w - 0.5 - margin_px, h - 0.5 - margin_px), (n_points, 2))
+    xy = camera.pixels_to_normalized(uv)
+    z = rng.uniform(*depth_m, n_points)
+    pc = np.column_stack([xy * z[:, None], z])
+    return (pc - camera.world2cam_t) @ camera.world2cam_r

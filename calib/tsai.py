@@ -31,6 +31,7 @@ from calib.covariance import (
     propagate_covariance,
     unit_covariance,
 )
+from calib.duplicates import drop_duplicates
 from calib.result import CalibrationResult, result_from_fit
 from calib.rotation import matrix2euler, matrix2rotvec, right_jacobian, rotvec2matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
@@ -147,19 +148,22 @@ def calibrate_tsai(
     image_size: tuple[int, int],
     *,
     centre: tuple[float, float] | None = None,
+    keep_duplicates: bool = False,
 ) -> CalibrationResult:
     """Calibrate a camera with Tsai's non-coplanar method and full optimisation.
 
     Needs at least 7 non-coplanar points: the linear radial-alignment stage has 7
     unknowns. The full optimisation of the 11 parameters then needs 12 residuals (6 points),
     and meaningful standard deviations need a good margin beyond that (a note is attached
-    when the fit has fewer than 10 degrees of freedom).
+    when the fit has fewer than 10 degrees of freedom). Rows that repeat an earlier row
+    exactly are merged and noted (see :mod:`calib.duplicates`).
 
     Args:
         points_3d: (N, 3) world points, m.
         pixels: (N, 2) observed pixels (OpenCV convention).
         image_size: (width, height), px.
         centre: the image centre to assume in the linear stage; default the image's centre.
+        keep_duplicates: fit exact duplicate rows as independent measurements.
 
     Returns:
         The calibrated camera, the 11 parameters (f_px, cx, cy, sx, kappa1_px, rx, ry, rz in
@@ -168,6 +172,7 @@ def calibrate_tsai(
     """
     p3, uv = check_correspondences(points_3d, pixels)
     size = check_image_size(image_size)
+    p3, uv, duplicates = drop_duplicates(p3, uv, keep_duplicates)
     check_min_points(
         len(p3),
         LINEAR_MIN_POINTS,
@@ -219,6 +224,8 @@ def calibrate_tsai(
         p3,
         uv,
         cam0,
+        duplicates=duplicates,
+        duplicates_kept=keep_duplicates,
     )
 
 
@@ -226,17 +233,21 @@ def calibrate_exterior(
     points_3d: ArrayLike,
     pixels: ArrayLike,
     intrinsics: TsaiCamera,
+    *,
+    keep_duplicates: bool = False,
 ) -> CalibrationResult:
     """Estimate the pose of a camera whose intrinsics are known (a camera that was moved).
 
     The pose is started from OpenCV's PnP on the exactly undistorted pixels and refined by
-    least squares on the reprojection error in pixels. Coplanar points are allowed.
+    least squares on the reprojection error in pixels. Coplanar points are allowed. Rows
+    that repeat an earlier row exactly are merged and noted (see :mod:`calib.duplicates`).
 
     Args:
         points_3d: (N, 3) world points, N >= 4, m.
         pixels: (N, 2) observed pixels.
         intrinsics: a TsaiCamera whose f, cx, cy, sx, kappa1 and image size are used; its
             pose is ignored.
+        keep_duplicates: fit exact duplicate rows as independent measurements.
 
     Returns:
         The camera with the new pose; parameters rx, ry, rz (rad) and x, y, z (m) with their
@@ -245,6 +256,7 @@ def calibrate_exterior(
     import cv2
 
     p3, uv = check_correspondences(points_3d, pixels)
+    p3, uv, duplicates = drop_duplicates(p3, uv, keep_duplicates)
     check_min_points(len(p3), 4, "exterior calibration (6 pose parameters, PnP)")
     check_pixels_in_image(uv, intrinsics.image_size)
     check_spread(p3, need_3d=False, what="exterior calibration")
@@ -278,5 +290,16 @@ def calibrate_exterior(
         return np.concatenate([matrix2euler(rotvec2matrix(x[:3])), x[3:]])
 
     return result_from_fit(
-        "tsai-exterior", cam, EXTERIOR_PARAMETERS, q, jac(q), residual(q), reported, steps, p3, uv
+        "tsai-exterior",
+        cam,
+        EXTERIOR_PARAMETERS,
+        q,
+        jac(q),
+        residual(q),
+        reported,
+        steps,
+        p3,
+        uv,
+        duplicates=duplicates,
+        duplicates_kept=keep_duplicates,
     )

@@ -88,11 +88,13 @@ def radial_alignment(
     # Homogeneous form: yd (sx r1.X + sx Tx) - xd (r2.X + Ty) = 0 in the 8 unknowns
     # v = (sx r1, sx Tx, r2, Ty), solved as the null vector of the system by SVD. Tsai's
     # original divides by Ty, which fails when the world origin lies near the camera's
-    # y_c = 0 plane; this form has no such singularity.
+    # y_c = 0 plane; this form has no such singularity. From 8 points on, the thin SVD
+    # gives the whole (8, 8) V in memory linear in N (the full one would also build an
+    # (N, N) U: 80 GB at 100k points); 7 points need the full one for V's last row.
     a = np.column_stack([yd[:, None] * p3, yd, -xd[:, None] * p3, -xd])
     scale = np.linalg.norm(a, axis=0)
     scale[scale == 0] = 1.0
-    _, sv, vt = np.linalg.svd(a / scale, full_matrices=True)
+    _, sv, vt = np.linalg.svd(a / scale, full_matrices=len(a) < a.shape[1])
     # Consistent data leave one singular value at ~0; the next one measures how well the
     # points pin the solution down.
     condition = float(sv[0] / sv[-2]) if sv[-2] > 0 else float("inf")

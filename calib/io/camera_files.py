@@ -13,6 +13,7 @@ A Tsai camera written to an OpenCV or ROS file is first converted to OpenCV's mo
 
 from __future__ import annotations
 
+import errno
 import json
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ import numpy as np
 import yaml
 
 from calib.camera import TsaiCamera
+from calib.io.atomic import atomic_file
 from calib.opencv_camera import OpenCVCamera, tsai2opencv
 
 Camera = TsaiCamera | OpenCVCamera
@@ -98,6 +100,8 @@ def camera_from_dict(data: dict[str, Any], source: str = "camera") -> Camera:
 def _write_opencv_yaml(path: Path, camera: Camera) -> None:
     cv_cam, conv_err = _as_opencv(camera)
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    if not fs.isOpened():
+        raise OSError(errno.EIO, "OpenCV cannot open the file for writing", str(path))
     try:
         fs.write("image_width", int(cv_cam.image_size[0]))
         fs.write("image_height", int(cv_cam.image_size[1]))
@@ -171,16 +175,24 @@ def _read_ros_yaml(path: Path) -> OpenCVCamera:
 
 # -- dispatch ------------------------------------------------------------------------------
 def save_camera(camera: Camera, path: str | Path, name: str = "camera") -> None:
-    """Write a camera; the format follows the file name (see the module docstring)."""
+    """Write a camera; the format follows the file name (see the module docstring).
+
+    Missing folders are created. The file is written whole or not at all
+    (:func:`calib.io.atomic.atomic_file`).
+
+    Raises:
+        ValueError: an unknown file type. OSError: the file cannot be written.
+    """
     path = Path(path)
     fmt = camera_format(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if fmt == "json":
-        path.write_text(json.dumps(camera_to_dict(camera), indent=2) + "\n")
-    elif fmt == "ros":
-        _write_ros_yaml(path, camera, name)
-    else:
-        _write_opencv_yaml(path, camera)
+    with atomic_file(path) as tmp:
+        if fmt == "json":
+            tmp.write_text(json.dumps(camera_to_dict(camera), indent=2) + "\n")
+        elif fmt == "ros":
+            _write_ros_yaml(tmp, camera, name)
+        else:
+            _write_opencv_yaml(tmp, camera)
 
 
 def load_camera(path: str | Path) -> Camera:

@@ -1,22 +1,68 @@
-"""``twin calibrate``: calibrate one camera from a file of 3D-2D correspondences."""
+"""``twin calibrate``: calibrate one camera from a file of 3D-2D correspondences.
+
+Every bad input ends with a message that names the argument and what was expected, and
+exit code 2: the arguments are checked when parsed, the output paths before the
+calibration, and the output files are written whole or not at all
+(:mod:`twin.cli.output_paths`).
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from calib import CalibrationResult, calibrate_opencv, calibrate_tsai
+from calib.checks import MAX_IMAGE_SIDE_PX
 from calib.io import load_camera, read_points_csv, save_camera
 from calib.io.camera_files import camera_format
 from calib.io.points_csv import UNIT_SCALE
 from calib.paper_units import kappa1_px2mm
+from twin.cli.calibrate_notes import DEFAULT_UNITS, cli_notes
+from twin.cli.output_paths import OutputFiles, OutputPathError, check_output_path
+
+# Pixel pitches accepted by --pixel-size, mm. Real sensors range from about 0.56 um (phone
+# cameras) to about 200 um (X-ray flat panels); the bounds leave a factor of 5 beyond both,
+# and reject a pitch given in micrometres (most are 1.1 to 200) instead of millimetres.
+MIN_PITCH_MM = 1e-4
+MAX_PITCH_MM = 1.0
+
+
+def _image_side(text: str) -> int:
+    """argparse type of --image-size: a whole number of pixels, 1 to MAX_IMAGE_SIDE_PX."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number of pixels, got {text!r}"
+        ) from None
+    if not 0 < value <= MAX_IMAGE_SIDE_PX:
+        raise argparse.ArgumentTypeError(
+            f"expected a number of pixels from 1 to {MAX_IMAGE_SIDE_PX}, got {value}"
+        )
+    return value
+
+
+def _pixel_pitch(text: str) -> float:
+    """argparse type of --pixel-size: a pixel pitch in mm, MIN_PITCH_MM to MAX_PITCH_MM."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not MIN_PITCH_MM <= value <= MAX_PITCH_MM:  # also rejects NaN
+        raise argparse.ArgumentTypeError(
+            f"expected a pixel pitch in millimetres from {MIN_PITCH_MM:g} to {MAX_PITCH_MM:g} "
+            f"(a 5 um pitch is 0.005), got {text!r}"
+        )
+    return value
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,26 +73,79 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Calibrate one camera (Tsai's model by default) from 3D world points and their "
             "pixels. Prints the parameters with standard deviations and the paper's "
-            "Table III metrics."
+            "Table III metrics, and the notes a user should read: rows that were exact "
+            "copies of others (merged), and warnings when the result is implausible for its "
+            "input (a camera kilometres from its points: the wrong --units)."
         ),
     )
-    p.add_argument("points", type=Path, help="CSV with columns x,y,z,u,v (a header is allowed)")
     p.add_argument(
-        "--image-size", nargs=2, type=int, required=True, metavar=("W", "H"), help="pixels"
+        "points",
+        type=Path,
+        help="CSV file with columns x,y,z,u,v, one row per point (required; a header row "
+        "and a byte-order mark are allowed)",
     )
-    p.add_argument("--units", choices=sorted(UNIT_SCALE), default="m", help="units of x,y,z")
-    p.add_argument("--model", choices=["tsai", "opencv"], default="tsai")
-    p.add_argument("--tangential", action="store_true", help="opencv model: also estimate p1, p2")
-    p.add_argument("--k3", action="store_true", help="opencv model: also estimate k3")
     p.add_argument(
-        "--pixel-size", type=float, metavar="MM", help="sensor pixel pitch (for kappa1 in 1/mm^2)"
+        "--image-size",
+        nargs=2,
+        type=_image_side,
+        required=True,
+        metavar=("W", "H"),
+        help="width and height of the image the pixels were measured in, px (required: no default)",
+    )
+    p.add_argument(
+        "--units",
+        choices=sorted(UNIT_SCALE),
+        default=DEFAULT_UNITS,
+        help="unit of x,y,z in the file: m (metres) or mm (millimetres) (default: m). "
+        "Lengths in the output are in the same unit. A file read in the wrong unit "
+        "calibrates with every length 1000 times off, which is warned about",
+    )
+    p.add_argument(
+        "--model",
+        choices=["tsai", "opencv"],
+        default="tsai",
+        help="camera model: Tsai's (f, cx, cy, sx, kappa1) or OpenCV's (fx, fy, cx, cy, k1, "
+        "k2, ...) (default: tsai)",
+    )
+    p.add_argument(
+        "--tangential",
+        action="store_true",
+        help="with --model opencv: also estimate p1, p2 (default: off, fixed at 0)",
+    )
+    p.add_argument(
+        "--k3",
+        action="store_true",
+        help="with --model opencv: also estimate k3 (default: off, fixed at 0)",
+    )
+    p.add_argument(
+        "--pixel-size",
+        type=_pixel_pitch,
+        metavar="MM",
+        help="with --model tsai: sensor pixel pitch, mm, to also report kappa1 in 1/mm^2 "
+        "(default: none; kappa1 in 1/px^2 only)",
     )
     p.add_argument(
         "--out",
         type=Path,
-        help="write the camera: .json, .yaml (OpenCV) or .camera_info.yaml (ROS)",
+        metavar="FILE",
+        help="write the camera to this file: .json, .yaml (OpenCV) or .camera_info.yaml "
+        "(ROS) (default: not written)",
     )
-    p.add_argument("--json", type=Path, dest="json_out", help="write the result as JSON")
+    p.add_argument(
+        "--json",
+        type=Path,
+        dest="json_out",
+        metavar="FILE",
+        help="write the result, with its notes, to this JSON file (default: not written)",
+    )
+    p.add_argument(
+        "--keep-duplicates",
+        action="store_true",
+        help="fit rows that repeat an earlier row exactly (same x,y,z,u,v) as independent "
+        "measurements (default: off: they are merged and counted, since a copy of a row is "
+        "not a second measurement and counting it twice would shrink every standard "
+        "deviation)",
+    )
     p.set_defaults(func=run)
 
 
@@ -84,6 +183,8 @@ def result_to_dict(
         "units": units,
         "image_size": list(result.camera.image_size),
         "n_points": result.n_points,
+        "duplicates": result.duplicates,
+        "duplicates_merged": bool(result.duplicates) and not result.duplicates_kept,
         "dof": result.dof,
         "sigma_px": result.sigma_px,
         "parameters": params,
@@ -99,7 +200,25 @@ def result_to_dict(
             "error_3d_max": m.error_3d.max * scale,
         },
         "notes": list(result.notes),
+        "warnings": [],
     }
+
+
+def _json_ready(value: Any) -> Any:
+    """``value`` with every NaN or infinity replaced by None (JSON has neither)."""
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def result_json(d: dict[str, Any]) -> str:
+    """A result dictionary as strict JSON: a value that is not finite (the std of a
+    parameter the data do not determine) is written as null."""
+    return json.dumps(_json_ready(d), indent=2, allow_nan=False) + "\n"
 
 
 def _fmt(v: float) -> str:
@@ -110,7 +229,10 @@ def _fmt(v: float) -> str:
 def print_result(console: Console, d: dict[str, Any], source: str) -> None:
     """Print the parameter and metric tables of a result dictionary."""
     units = d["units"]
-    t = Table(title=f"{d['model']} calibration of {source} ({d['n_points']} points)")
+    n_dup = d["duplicates"]
+    merged = f"; {n_dup} duplicate row{'s' * (n_dup > 1)} merged" if d["duplicates_merged"] else ""
+    title = f"{d['model']} calibration of {source} ({d['n_points']} points{merged})"
+    t = Table(title=escape(title))
     t.add_column("parameter")
     t.add_column("value", justify="right")
     t.add_column("std", justify="right")
@@ -135,7 +257,91 @@ def print_result(console: Console, d: dict[str, Any], source: str) -> None:
     console.print(mt)
     console.print(f"residual sigma {d['sigma_px']:.4f} px, {d['dof']} degrees of freedom")
     for note in d["notes"]:
-        console.print(f"[yellow]note:[/yellow] {note}")
+        if note in d["warnings"]:
+            console.print(f"[bold yellow]warning:[/bold yellow] {escape(note)}", highlight=False)
+        else:
+            console.print(f"[yellow]note:[/yellow] {escape(note)}", highlight=False)
+
+
+def _check_model_options(args: argparse.Namespace) -> None:
+    """Reject options that the chosen model would ignore."""
+    ignored = {
+        "--tangential": args.tangential and args.model != "opencv",
+        "--k3": args.k3 and args.model != "opencv",
+        "--pixel-size": args.pixel_size is not None and args.model != "tsai",
+    }
+    for option, bad in ignored.items():
+        if bad:
+            wanted = "tsai" if option == "--pixel-size" else "opencv"
+            raise ValueError(
+                f"{option} has no effect with --model {args.model}; expected it with "
+                f"--model {wanted} only"
+            )
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Reject, before any work, output paths that cannot be written or would destroy the
+    input; the message names the option."""
+    outputs = {"--out": args.out, "--json": args.json_out}
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        check_output_path(path, option)
+        if path.resolve() == args.points.resolve():
+            raise OutputPathError(
+                f"{option} {path}: is the points file; expected another file (writing it "
+                "would destroy the input)"
+            )
+        if option == "--out":
+            try:
+                camera_format(path)
+            except ValueError as exc:
+                raise OutputPathError(f"--out {exc}") from None
+    both = args.out is not None and args.json_out is not None
+    if both and args.out.resolve() == args.json_out.resolve():
+        raise OutputPathError(
+            f"--out {args.out} and --json {args.json_out} name the same file; expected two files"
+        )
+
+
+def _calibrate(
+    args: argparse.Namespace, points: np.ndarray, pixels: np.ndarray
+) -> tuple[CalibrationResult, list[warnings.WarningMessage]]:
+    """Calibrate with the chosen model; also return the warnings emitted meanwhile."""
+    size = tuple(args.image_size)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if args.model == "tsai":
+            result = calibrate_tsai(points, pixels, size, keep_duplicates=args.keep_duplicates)
+        else:
+            result = calibrate_opencv(
+                points,
+                pixels,
+                size,
+                tangential=args.tangential,
+                k3=args.k3,
+                keep_duplicates=args.keep_duplicates,
+            )
+    return result, [w for w in caught if issubclass(w.category, UserWarning)]
+
+
+def _write_outputs(args: argparse.Namespace, result: CalibrationResult, d: dict) -> list[str]:
+    """Write --out and --json, all or nothing; returns what to print about them."""
+    written = []
+    with OutputFiles() as files:
+        if args.out is not None:
+
+            def write_camera(tmp: Path) -> None:
+                save_camera(result.camera, tmp, name=args.points.stem)
+                load_camera(tmp)  # what was written must read back
+
+            files.stage(args.out, "--out", write_camera)
+            written.append(f"camera written to {args.out}")
+        if args.json_out is not None:
+            text = result_json(d)
+            files.stage(args.json_out, "--json", lambda tmp: tmp.write_text(text))
+            written.append(f"result written to {args.json_out}")
+    return written
 
 
 def run(args: argparse.Namespace) -> int:
@@ -143,30 +349,16 @@ def run(args: argparse.Namespace) -> int:
     console = Console()
     err = Console(stderr=True)
     try:
-        if args.out is not None:
-            camera_format(args.out)  # reject an unknown suffix before calibrating
-        if args.pixel_size is not None and not args.pixel_size > 0:
-            raise ValueError(f"--pixel-size must be positive, got {args.pixel_size}")
+        _check_model_options(args)
+        _check_outputs(args)
         points, pixels = read_points_csv(args.points, args.units)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # notes are printed with the result
-            if args.model == "tsai":
-                result = calibrate_tsai(points, pixels, tuple(args.image_size))
-            else:
-                result = calibrate_opencv(
-                    points, pixels, tuple(args.image_size), tangential=args.tangential, k3=args.k3
-                )
+        result, caught = _calibrate(args, points, pixels)
+        d = result_to_dict(result, args.units, args.pixel_size)
+        d["notes"], d["warnings"] = cli_notes(result, args.units, caught)
+        print_result(console, d, str(args.points))
+        for line in _write_outputs(args, result, d):
+            console.print(escape(line), highlight=False)
     except ValueError as exc:
-        err.print(f"[red]error:[/red] {exc}", highlight=False)
+        err.print(f"[red]error:[/red] {escape(str(exc))}", highlight=False, soft_wrap=True)
         return 2
-    d = result_to_dict(result, args.units, args.pixel_size)
-    print_result(console, d, str(args.points))
-    if args.out is not None:
-        save_camera(result.camera, args.out, name=args.points.stem)
-        load_camera(args.out)  # what was written must read back
-        console.print(f"camera written to {args.out}")
-    if args.json_out is not None:
-        args.json_out.parent.mkdir(parents=True, exist_ok=True)
-        args.json_out.write_text(json.dumps(d, indent=2) + "\n")
-        console.print(f"result written to {args.json_out}")
     return 0
