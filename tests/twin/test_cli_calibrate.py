@@ -311,18 +311,18 @@ def tree(folder: Path) -> dict[str, bytes | None]:
 @pytest.mark.parametrize(
     ("outputs", "message"),
     [
-        (["--out", "{dir}"], "--out {dir}: is a directory; expected the name of a file"),
-        (["--out", "{dir}/cam.json/"], "is a directory; expected the name of a file"),
-        (["--out", "{file}/cam.json"], "--out {file}/cam.json: {file} is a file, not a directory"),
-        (["--out", "{file}/a/b/cam.yaml"], "{file} is a file, not a directory; expected a path"),
-        (["--json", "{dir}"], "--json {dir}: is a directory; expected the name of a file"),
-        (["--json", "{file}/r.json"], "--json {file}/r.json: {file} is a file, not a directory"),
+        (["--out", "{dir}"], "--out {dir}: is a folder; expected the name of a file"),
+        (["--out", "{dir}/cam.json/"], "is a folder; expected the name of a file"),
+        (["--out", "{file}/cam.json"], "--out {file}/cam.json: lies under the file {file}"),
+        (["--out", "{file}/a/b/cam.yaml"], "lies under the file {file}; expected a folder"),
+        (["--json", "{dir}"], "--json {dir}: is a folder; expected the name of a file"),
+        (["--json", "{file}/r.json"], "--json {file}/r.json: lies under the file {file}"),
         (["--json", "{points}"], "--json {points}: is the points file; expected another file"),
         (["--out", "{points}"], "--out {points}: is the points file; expected another file"),
         (["--out", "{dir}/cam.txt"], "--out {dir}/cam.txt: unknown camera file type; use .json"),
         (["--out", "{dir}/c.json", "--json", "{dir}/c.json"], "name the same file; expected two"),
         (["--out", "{dir}/new/cam.txt", "--json", "{dir}/new/r.json"], "--out {dir}/new/cam.txt:"),
-        (["--out", "{dir}/ok.json", "--json", "{file}/r.json"], "--json {file}/r.json: {file} is"),
+        (["--out", "{dir}/ok.json", "--json", "{file}/r.json"], "--json {file}/r.json: lies"),
     ],
 )
 def test_output_paths_that_cannot_be_written(tmp_path, capsys, outputs, message) -> None:

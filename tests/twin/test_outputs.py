@@ -85,9 +85,9 @@ def test_paths_that_cannot_hold_the_output_are_named(tmp_path):
         claim_folder(a_file, "run", OWNS)
     with pytest.raises(OutputError, match=r"lies under the file .*a_file; expected a folder"):
         claim_folder(a_file / "sub", "run", OWNS)
-    with pytest.raises(OutputError, match=r"--export .*: is a folder; expected a file name"):
+    with pytest.raises(OutputError, match=r"--export .*: is a folder; expected the name of a"):
         check_file_target(tmp_path, "--export")
-    with pytest.raises(OutputError, match=r"--json .*: lies under the file .*a_file"):
+    with pytest.raises(OutputError, match=r"--json .*: lies under the file .*a_file; expected"):
         check_file_target(a_file / "x.json", "--json")
     assert a_file.read_text() == "x"
 

@@ -3,7 +3,7 @@
 Every bad input ends with a message that names the argument and what was expected, and
 exit code 2: the arguments are checked when parsed, the output paths before the
 calibration, and the output files are written whole or not at all
-(:mod:`twin.cli.output_paths`).
+(:mod:`twin.outputs`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from calib.io.camera_files import camera_format
 from calib.io.points_csv import UNIT_SCALE
 from calib.paper_units import kappa1_px2mm
 from twin.cli.calibrate_notes import DEFAULT_UNITS, cli_notes
-from twin.cli.output_paths import OutputFiles, OutputPathError, check_output_path
+from twin.outputs import OutputError, OutputFiles, check_file_target
 
 # Pixel pitches accepted by --pixel-size, mm. Real sensors range from about 0.56 um (phone
 # cameras) to about 200 um (X-ray flat panels); the bounds leave a factor of 5 beyond both,
@@ -286,9 +286,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
     for option, path in outputs.items():
         if path is None:
             continue
-        check_output_path(path, option)
+        check_file_target(path, option)
         if path.resolve() == args.points.resolve():
-            raise OutputPathError(
+            raise OutputError(
                 f"{option} {path}: is the points file; expected another file (writing it "
                 "would destroy the input)"
             )
@@ -296,10 +296,10 @@ def _check_outputs(args: argparse.Namespace) -> None:
             try:
                 camera_format(path)
             except ValueError as exc:
-                raise OutputPathError(f"--out {exc}") from None
+                raise OutputError(f"--out {exc}") from None
     both = args.out is not None and args.json_out is not None
     if both and args.out.resolve() == args.json_out.resolve():
-        raise OutputPathError(
+        raise OutputError(
             f"--out {args.out} and --json {args.json_out} name the same file; expected two files"
         )
 
@@ -346,8 +346,8 @@ def _write_outputs(args: argparse.Namespace, result: CalibrationResult, d: dict)
 
 def run(args: argparse.Namespace) -> int:
     """Run ``twin calibrate``; returns the exit code (2 for bad input)."""
-    console = Console()
-    err = Console(stderr=True)
+    console = Console(soft_wrap=True)
+    err = Console(stderr=True, soft_wrap=True)
     try:
         _check_model_options(args)
         _check_outputs(args)

@@ -61,7 +61,7 @@ def test_an_output_folder_that_is_a_file_or_holds_other_things_is_refused(comman
 @pytest.mark.parametrize("command", ["render", "scene"])
 def test_an_output_file_that_is_a_folder_is_refused(command, place, capsys):
     _, _, full = place
-    _refused([*COMMANDS[command], str(full)], capsys, "is a folder; expected a file name")
+    _refused([*COMMANDS[command], str(full)], capsys, "is a folder; expected the name of a file")
 
 
 @pytest.mark.parametrize("command", ["run", "montecarlo", "detect"])
