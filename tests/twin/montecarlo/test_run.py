@@ -136,8 +136,10 @@ def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
     assert main([*base, "--ray-address", "auto"]) == 2
     assert "--ray-address goes with --engine ray" in capsys.readouterr().out
     assert main(["montecarlo", str(tmp_path / "none.toml"), "--trials", "1"]) == 2
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as exit_:
         main([*base[:2], "--trials", "0"])
+    assert exit_.value.code == 2  # argparse's usage error, as the other refusals
+    assert "--trials: must be at least 1, got 0" in capsys.readouterr().err
     assert not (tmp_path / "mc").exists()
 
 
