@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tests.twin.campaign.regression.cases import faulted
+from twin.campaign.records import CALIBRATION
 from twin.record import read_log
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
@@ -23,7 +24,11 @@ HALL = ROOT / "scenarios" / "paper_hall.toml"
 
 
 def _check_outputs(out: Path, results: dict) -> None:
-    assert (out / "log.mcap").stat().st_size > 1000
+    # The log is whole and holds the run: one calibration record a calibration.
+    log = read_log(out / "log.mcap")
+    assert log.complete
+    recorded = [(m.data["camera"], m.data["visit"]) for m in log.messages if m.topic == CALIBRATION]
+    assert recorded == [(c["camera"], c["visit"]) for c in results["calibrations"]]
     on_disk = json.loads((out / "results.json").read_text())
     assert on_disk["calibrations"] == json.loads(json.dumps(results["calibrations"]))
     for key in ("scenario", "fidelity", "seed", "calibrations", "repeatability_mm"):
@@ -39,6 +44,22 @@ def _check_outputs(out: Path, results: dict) -> None:
         assert (out / "cameras" / f"cam1_visit1{suffix}").exists()
 
 
+# One run's errors are single draws; their bands come from 200 seeds of the smoke scenario
+# at the geometric fidelity (the render fidelity's local errors agree with them within 10 %,
+# test_fidelities_agree), each set where one draw passes it once in 10 000:
+# - the camera's position error over the calibration's own predicted RMS (its standard
+#   deviations of x, y, z): RMS 1.60, largest 3.5. Tsai's covariance takes the LED
+#   positions as exact, and the instrument's 3D noise adds the rest. The error's tail is
+#   that of its largest axis, a half-normal: 5e-5 lies 4.06 of its RMS out, 6.5;
+# - the rotation error: RMS 0.20 deg (largest 0.46: the 0.5 deg this band was set to passed
+#   once in a few hundred seeds); by the same tail, 0.82 deg;
+# - the local pixel error, a mean over 70 points: 0.229 px, standard deviation 0.032 px
+#   over the seeds, normal: 0.229 +- 4.4 standard deviations.
+POSITION_OVER_PREDICTED = 4.06 * 1.60
+ROTATION_DEG = 4.06 * 0.20
+LOCAL_PIXEL = (0.229 - 4.4 * 0.032, 0.229 + 4.4 * 0.032)
+
+
 @pytest.mark.parametrize("fidelity", ["geometric", "render"])
 def test_smoke_runs_end_to_end(tmp_path, fidelity):
     results = run_scenario(SMOKE, tmp_path, fidelity=fidelity, report=False)
@@ -46,10 +67,10 @@ def test_smoke_runs_end_to_end(tmp_path, fidelity):
     assert results["complete"]
     (cal,) = results["calibrations"]
     assert cal["points"] == 70
-    # The smoke camera (f = 400 px) is 6 m away: a calibration good to centimetres.
-    assert cal["truth"]["position_error_mm"] < 60.0
-    assert cal["truth"]["rotation_error_deg"] < 0.5
-    assert cal["errors"]["local"]["pixel_mean"] < 0.5
+    predicted_mm = 1e3 * np.linalg.norm([cal["std"][k] for k in "xyz"])
+    assert cal["truth"]["position_error_mm"] < POSITION_OVER_PREDICTED * predicted_mm
+    assert cal["truth"]["rotation_error_deg"] < ROTATION_DEG
+    assert LOCAL_PIXEL[0] < cal["errors"]["local"]["pixel_mean"] < LOCAL_PIXEL[1]
     # The reference set of the camera seen from the start gives the world errors.
     assert cal["errors"]["world"]["points"] == 70
 
