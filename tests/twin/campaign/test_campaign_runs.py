@@ -11,9 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from tests.twin.campaign.regression.cases import faulted
 from twin.campaign.records import CALIBRATION
+from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
@@ -149,29 +151,48 @@ def test_a_killed_run_keeps_what_it_measured(tmp_path):
     assert partial["reference_sets"][0]["points"] > 0
 
 
+# The hall's errors, measured over 80 seeds at the geometric fidelity, for the test below:
+# - the world-frame 3D error of camera 1's second visit (after 85 m) over its first's (after
+#   1 m): log of the ratio 1.73 +- 0.69 a seed (the ratio falls below 2 for one seed in 12,
+#   the reason "each of three seeds above 2" was a bet); the mean of three seeds' logs
+#   falls below zero with probability 1e-5 (4.3 standard deviations);
+# - the local-frame 3D error of each visit, a mean over 70 points (mean, standard
+#   deviation), about normal: held to 5 standard deviations, 15 values a false alarm once
+#   in 100 000 runs;
+# - the parent's final position error against its propagated covariance: mean NEES 3.06
+#   (80 seeds, consistent); three seeds' NEES sum to chi-square with 9 degrees of freedom,
+#   held to its two-sided 1e-4 quantiles.
+LOCAL_3D_MM = {
+    ("cam1", 1): (0.946, 0.124),
+    ("cam2", 1): (1.696, 0.237),
+    ("cam3", 1): (1.006, 0.121),
+    ("cam2", 2): (1.464, 0.234),
+    ("cam1", 2): (1.419, 0.194),
+}
+
+
 def test_world_errors_grow_with_travel_and_local_errors_do_not(tmp_path):
     """The paper's Table III pattern, over three seeds of the hall at the geometric fidelity:
     the world-frame errors of the last calibration (camera 1 after 85 m) exceed the first's
     (camera 1 after 1 m), while the local-frame errors stay at the level of the detection
-    noise at every visit."""
-    first, last, local = [], [], []
-    for seed in (1, 2, 3):
+    noise at every visit; the parent's final error is what CPS predicts."""
+    seeds = (1, 2, 3)
+    log_growth, nees = [], 0.0
+    for seed in seeds:
+        out = tmp_path / str(seed)
         res = run_scenario(
-            HALL,
-            tmp_path / str(seed),
-            fidelity="geometric",
-            seed=seed,
-            report=False,
-            strategy="paper",
+            HALL, out, fidelity="geometric", seed=seed, report=False, strategy="paper"
         )
         cal = {(c["camera"], c["visit"]): c for c in res["calibrations"]}
-        first.append(cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"])
-        last.append(cal[("cam1", 2)]["errors"]["world"]["error_3d_mean_mm"])
-        local.append([c["errors"]["local"]["error_3d_mean_mm"] for c in res["calibrations"]])
-        # CPS error accumulates over the route: the parent ends centimetres off, not metres.
-        assert 1.0 < res["parent_final_error_mm"] < 200.0
-    first, last, local = np.array(first), np.array(last), np.array(local)
-    assert np.all(last > 2.0 * first), (first, last)
-    # Local errors: no trend with travel (the last visit's within 2x of the first's).
-    assert np.all(local[:, -1] < 2.0 * local[:, 0] + 1.0), local
-    assert np.all(local < 5.0), local
+        first = cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"]
+        last = cal[("cam1", 2)]["errors"]["world"]["error_3d_mean_mm"]
+        log_growth.append(np.log(last / first))
+        for key, (mean, sd) in LOCAL_3D_MM.items():
+            local = cal[key]["errors"]["local"]["error_3d_mean_mm"]
+            assert abs(local - mean) < 5 * sd, (seed, key, local)
+        _, final = predictions_from_log(read_log(out / "log.mcap").messages)
+        nees += final.error_m @ np.linalg.solve(final.covariance_m2, final.error_m)
+        assert 1e3 * np.linalg.norm(final.error_m) == pytest.approx(res["parent_final_error_mm"])
+    assert np.mean(log_growth) > 0.0, log_growth
+    dof = 3 * len(seeds)
+    assert chi2.ppf(5e-5, dof) < nees < chi2.isf(5e-5, dof), nees
