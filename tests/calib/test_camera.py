@@ -32,6 +32,23 @@ def test_pinhole_matches_opencv_projection(cam1, cam1_points) -> None:
     assert_allclose(cam.project(cam1_points), uv_cv.reshape(-1, 2), atol=1e-6)
 
 
+@pytest.mark.parametrize(("kappa1", "scale"), [(4e-6, 1.05), (-4e-6, 0.95)])
+def test_projection_of_a_known_point_by_hand(kappa1, scale) -> None:
+    # Tsai's convention, worked by hand: the distorted point (x_d, y_d) = (100, -50) px
+    # has r_d^2 = 12500 px^2, so its undistorted point is (x_d, y_d) (1 + kappa1 r_d^2) =
+    # (100, -50) * scale. A camera at the origin looking along +z (OpenCV's frame: x
+    # right, y down) sees it at (x_c, y_c) = (x_u, y_u) z / f, and puts its pixel at
+    # u = sx x_d + cx = 1.02 * 100 + 160 = 262, v = y_d + cy = -50 + 120 = 70.
+    cam = TsaiCamera(800.0, 160.0, 120.0, kappa1, 1.02, np.eye(3), np.zeros(3))
+    z = 4.0
+    point = np.array([[100.0 * scale * z / 800.0, -50.0 * scale * z / 800.0, z]])
+    assert_allclose(cam.project(point), [[262.0, 70.0]], rtol=0, atol=1e-9)
+    # The line of sight through that pixel passes through the point.
+    origin, direction = cam.unproject([[262.0, 70.0]])
+    assert_allclose(origin[0], 0.0, atol=1e-12)
+    assert_allclose(direction[0], point[0] / np.linalg.norm(point[0]), atol=1e-12)
+
+
 def test_centre_of_image_is_on_the_optical_axis(cam1) -> None:
     point = cam1.position + 7.0 * cam1.optical_axis
     assert_allclose(cam1.project(point[None]), [[cam1.cx, cam1.cy]], atol=1e-9)

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy.stats import f as f_law
 
 from calib import DegenerateGeometryWarning, calibrate_exterior, calibrate_opencv, calibrate_tsai
 from calib.synthetic import led_points, paper_camera
@@ -30,15 +31,63 @@ def test_noise_free_recovers_every_parameter(paper_cam) -> None:
     assert res.metrics.error_3d.max < 1e-9
 
 
-def test_noisy_parameters_within_three_sigma(paper_cam) -> None:
-    rng = np.random.default_rng(12)
-    pts = led_points(paper_cam, 70, rng)
-    uv = paper_cam.project(pts) + rng.normal(0.0, 0.3, (70, 2))
-    res = calibrate_tsai(pts, uv, paper_cam.image_size)
-    z = (res.values - true_values(paper_cam)) / res.std
-    assert np.all(np.abs(z) < 3.0), dict(zip(res.parameter_names, z.round(2), strict=True))
-    assert res.sigma_px == pytest.approx(0.3, rel=0.2)
-    assert res.dof == 2 * 70 - 11
+# One calibration's errors against its reported covariance, over many data sets. For a
+# least-squares estimate linear in the noise, with the covariance scaled by the residual
+# variance, NEES / P = e^T C^-1 e / P follows Fisher's F(P, dof) law exactly; its
+# cumulative probability u is uniform on (0, 1), whatever a single value's tail. The mean
+# of n values of u is 1/2 within sqrt(1 / (12 n)); the band is 4 of those standard errors
+# (two-sided: a false alarm once in 16 000 runs). Both sides count: a covariance too small
+# (errors beyond it) pushes u up, one too large pulls it down. Each camera gives 4 point
+# sets with 20 draws of pixel noise each: n = 240, band +-0.075.
+PIT_K = 4.0
+POINT_SETS, NOISE_DRAWS = 4, 20
+
+
+def pit_mean_band(n: int) -> float:
+    return PIT_K * np.sqrt(1.0 / (12.0 * n))
+
+
+def nees_probability(res, truth: np.ndarray) -> float:
+    """Cumulative probability of a calibration's NEES under its F law."""
+    e = res.values - truth
+    angles = np.isin(res.parameter_names, ("rx", "ry", "rz"))
+    e[angles] = (e[angles] + np.pi) % (2 * np.pi) - np.pi
+    p = len(e)
+    return float(f_law.cdf(e @ np.linalg.solve(res.covariance, e) / p, p, res.dof))
+
+
+LINEAR_PX = 0.05
+
+
+def data_sets(index: int, sigma: float, seed: int):
+    """(camera, points, noisy pixels) of camera ``index``: POINT_SETS point sets, each
+    with NOISE_DRAWS draws of pixel noise ``sigma``."""
+    cam = paper_camera(index)
+    rng = np.random.default_rng(seed + index)
+    for _ in range(POINT_SETS):
+        pts = led_points(cam, 70, rng)
+        uv = cam.project(pts)
+        for _ in range(NOISE_DRAWS):
+            yield cam, pts, uv + rng.normal(0.0, sigma, uv.shape)
+
+
+def test_noisy_parameters_follow_their_reported_covariance() -> None:
+    # At 0.05 px, where the estimator is linear in the noise. A reported standard
+    # deviation 10 % too large moves the mean to 0.38, 10 % too small to 0.63. At the
+    # paper's 0.3 px cx and ry are not linear in the noise (see test_statistics.py): the
+    # mean is 0.58 and the NEES passes its 99 % quantile in 7 % of the data sets (450
+    # measured), the reason a 3-sigma test of all eleven parameters on one data set failed
+    # for about one seed in ten.
+    u, sigma2 = [], []
+    for index in (1, 2, 3):
+        for cam, pts, uv in data_sets(index, LINEAR_PX, 900):
+            res = calibrate_tsai(pts, uv, cam.image_size)
+            assert res.dof == 2 * 70 - 11
+            u.append(nees_probability(res, true_values(cam)))
+            sigma2.append((res.sigma_px / LINEAR_PX) ** 2)
+    assert abs(np.mean(u) - 0.5) < pit_mean_band(len(u)), np.mean(u)
+    # The residual variance: chi-square over dof, mean 1 within sqrt(2 / (dof n)).
+    assert abs(np.mean(sigma2) - 1.0) < PIT_K * np.sqrt(2.0 / (129 * len(sigma2)))
 
 
 def seven_points(cam) -> np.ndarray:
@@ -84,13 +133,23 @@ def test_exterior_calibration_of_a_moved_camera(cam1, cam1_points) -> None:
     res = calibrate_exterior(cam1_points, uv, cam1)
     assert_allclose(res.camera.position, moved.position, atol=1e-9)
     assert_allclose(res.camera.world2cam_r, moved.world2cam_r, atol=1e-10)
-    # With noise: within 3 sigma, and far tighter than a full calibration.
+    # With noise: far tighter than a full calibration.
     noisy = uv + rng.normal(0, 0.3, uv.shape)
     res = calibrate_exterior(cam1_points, noisy, cam1)
-    z = (res.values[3:] - moved.position) / res.std[3:]
-    assert np.all(np.abs(z) < 3.0)
     full = calibrate_tsai(cam1_points, noisy, cam1.image_size)
     assert np.all(res.std[3:] < full.std[8:])
+
+
+def test_exterior_parameters_follow_their_reported_covariance() -> None:
+    # The pose alone is linear enough at the paper's 0.3 px (measured over 600 data sets:
+    # mean u 0.490, NEES beyond its 99 % quantile in 1.0 %). A reported standard deviation
+    # 20 % too large moves the mean to 0.34, 10 % to 0.41 (caught three times in four).
+    u = []
+    for index in (1, 2, 3):
+        for cam, pts, uv in data_sets(index, 0.3, 950):
+            truth = np.concatenate([cam.rotation_rad, cam.position])
+            u.append(nees_probability(calibrate_exterior(pts, uv, cam), truth))
+    assert abs(np.mean(u) - 0.5) < pit_mean_band(len(u)), np.mean(u)
 
 
 def test_exterior_works_on_coplanar_points(cam1, cam1_points) -> None:

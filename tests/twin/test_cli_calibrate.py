@@ -135,9 +135,10 @@ def test_missing_file_and_bad_options(tmp_path, capsys) -> None:
     args = [str(EXAMPLE), "--image-size", "100", "240", "--units", "mm"]
     assert calibrate(*args) == 2
     assert "outside the 100x240 image" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as exit_info:
+    with pytest.raises(SystemExit) as exit_:
         calibrate(str(EXAMPLE), "--image-size", "320", "240", "--units", "inch")
-    assert exit_info.value.code == 2
+    assert exit_.value.code == 2  # bad input, as documented
+    assert "--units: invalid choice: 'inch'" in capsys.readouterr().err
 
 
 @settings(max_examples=30, deadline=None)

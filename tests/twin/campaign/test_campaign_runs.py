@@ -11,8 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.stats import chi2
 
 from tests.twin.campaign.regression.cases import faulted
+from twin.campaign.records import CALIBRATION
+from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
@@ -23,7 +26,11 @@ HALL = ROOT / "scenarios" / "paper_hall.toml"
 
 
 def _check_outputs(out: Path, results: dict) -> None:
-    assert (out / "log.mcap").stat().st_size > 1000
+    # The log is whole and holds the run: one calibration record a calibration.
+    log = read_log(out / "log.mcap")
+    assert log.complete
+    recorded = [(m.data["camera"], m.data["visit"]) for m in log.messages if m.topic == CALIBRATION]
+    assert recorded == [(c["camera"], c["visit"]) for c in results["calibrations"]]
     on_disk = json.loads((out / "results.json").read_text())
     assert on_disk["calibrations"] == json.loads(json.dumps(results["calibrations"]))
     for key in ("scenario", "fidelity", "seed", "calibrations", "repeatability_mm"):
@@ -39,6 +46,22 @@ def _check_outputs(out: Path, results: dict) -> None:
         assert (out / "cameras" / f"cam1_visit1{suffix}").exists()
 
 
+# One run's errors are single draws; their bands come from 200 seeds of the smoke scenario
+# at the geometric fidelity (the render fidelity's local errors agree with them within 10 %,
+# test_fidelities_agree), each set where one draw passes it once in 10 000:
+# - the camera's position error over the calibration's own predicted RMS (its standard
+#   deviations of x, y, z): RMS 1.60, largest 3.5. Tsai's covariance takes the LED
+#   positions as exact, and the instrument's 3D noise adds the rest. The error's tail is
+#   that of its largest axis, a half-normal: 5e-5 lies 4.06 of its RMS out, 6.5;
+# - the rotation error: RMS 0.20 deg (largest 0.46: the 0.5 deg this band was set to passed
+#   once in a few hundred seeds); by the same tail, 0.82 deg;
+# - the local pixel error, a mean over 70 points: 0.229 px, standard deviation 0.032 px
+#   over the seeds, normal: 0.229 +- 4.4 standard deviations.
+POSITION_OVER_PREDICTED = 4.06 * 1.60
+ROTATION_DEG = 4.06 * 0.20
+LOCAL_PIXEL = (0.229 - 4.4 * 0.032, 0.229 + 4.4 * 0.032)
+
+
 @pytest.mark.parametrize("fidelity", ["geometric", "render"])
 def test_smoke_runs_end_to_end(tmp_path, fidelity):
     results = run_scenario(SMOKE, tmp_path, fidelity=fidelity, report=False)
@@ -46,10 +69,10 @@ def test_smoke_runs_end_to_end(tmp_path, fidelity):
     assert results["complete"]
     (cal,) = results["calibrations"]
     assert cal["points"] == 70
-    # The smoke camera (f = 400 px) is 6 m away: a calibration good to centimetres.
-    assert cal["truth"]["position_error_mm"] < 60.0
-    assert cal["truth"]["rotation_error_deg"] < 0.5
-    assert cal["errors"]["local"]["pixel_mean"] < 0.5
+    predicted_mm = 1e3 * np.linalg.norm([cal["std"][k] for k in "xyz"])
+    assert cal["truth"]["position_error_mm"] < POSITION_OVER_PREDICTED * predicted_mm
+    assert cal["truth"]["rotation_error_deg"] < ROTATION_DEG
+    assert LOCAL_PIXEL[0] < cal["errors"]["local"]["pixel_mean"] < LOCAL_PIXEL[1]
     # The reference set of the camera seen from the start gives the world errors.
     assert cal["errors"]["world"]["points"] == 70
 
@@ -128,29 +151,48 @@ def test_a_killed_run_keeps_what_it_measured(tmp_path):
     assert partial["reference_sets"][0]["points"] > 0
 
 
+# The hall's errors, measured over 80 seeds at the geometric fidelity, for the test below:
+# - the world-frame 3D error of camera 1's second visit (after 85 m) over its first's (after
+#   1 m): log of the ratio 1.73 +- 0.69 a seed (the ratio falls below 2 for one seed in 12,
+#   the reason "each of three seeds above 2" was a bet); the mean of three seeds' logs
+#   falls below zero with probability 1e-5 (4.3 standard deviations);
+# - the local-frame 3D error of each visit, a mean over 70 points (mean, standard
+#   deviation), about normal: held to 5 standard deviations, 15 values a false alarm once
+#   in 100 000 runs;
+# - the parent's final position error against its propagated covariance: mean NEES 3.06
+#   (80 seeds, consistent); three seeds' NEES sum to chi-square with 9 degrees of freedom,
+#   held to its two-sided 1e-4 quantiles.
+LOCAL_3D_MM = {
+    ("cam1", 1): (0.946, 0.124),
+    ("cam2", 1): (1.696, 0.237),
+    ("cam3", 1): (1.006, 0.121),
+    ("cam2", 2): (1.464, 0.234),
+    ("cam1", 2): (1.419, 0.194),
+}
+
+
 def test_world_errors_grow_with_travel_and_local_errors_do_not(tmp_path):
     """The paper's Table III pattern, over three seeds of the hall at the geometric fidelity:
     the world-frame errors of the last calibration (camera 1 after 85 m) exceed the first's
     (camera 1 after 1 m), while the local-frame errors stay at the level of the detection
-    noise at every visit."""
-    first, last, local = [], [], []
-    for seed in (1, 2, 3):
+    noise at every visit; the parent's final error is what CPS predicts."""
+    seeds = (1, 2, 3)
+    log_growth, nees = [], 0.0
+    for seed in seeds:
+        out = tmp_path / str(seed)
         res = run_scenario(
-            HALL,
-            tmp_path / str(seed),
-            fidelity="geometric",
-            seed=seed,
-            report=False,
-            strategy="paper",
+            HALL, out, fidelity="geometric", seed=seed, report=False, strategy="paper"
         )
         cal = {(c["camera"], c["visit"]): c for c in res["calibrations"]}
-        first.append(cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"])
-        last.append(cal[("cam1", 2)]["errors"]["world"]["error_3d_mean_mm"])
-        local.append([c["errors"]["local"]["error_3d_mean_mm"] for c in res["calibrations"]])
-        # CPS error accumulates over the route: the parent ends centimetres off, not metres.
-        assert 1.0 < res["parent_final_error_mm"] < 200.0
-    first, last, local = np.array(first), np.array(last), np.array(local)
-    assert np.all(last > 2.0 * first), (first, last)
-    # Local errors: no trend with travel (the last visit's within 2x of the first's).
-    assert np.all(local[:, -1] < 2.0 * local[:, 0] + 1.0), local
-    assert np.all(local < 5.0), local
+        first = cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"]
+        last = cal[("cam1", 2)]["errors"]["world"]["error_3d_mean_mm"]
+        log_growth.append(np.log(last / first))
+        for key, (mean, sd) in LOCAL_3D_MM.items():
+            local = cal[key]["errors"]["local"]["error_3d_mean_mm"]
+            assert abs(local - mean) < 5 * sd, (seed, key, local)
+        _, final = predictions_from_log(read_log(out / "log.mcap").messages)
+        nees += final.error_m @ np.linalg.solve(final.covariance_m2, final.error_m)
+        assert 1e3 * np.linalg.norm(final.error_m) == pytest.approx(res["parent_final_error_mm"])
+    assert np.mean(log_growth) > 0.0, log_growth
+    dof = 3 * len(seeds)
+    assert chi2.ppf(5e-5, dof) < nees < chi2.isf(5e-5, dof), nees

@@ -11,10 +11,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from twin.montecarlo import run_montecarlo
 from twin.montecarlo.engines import make_engine
+from twin.montecarlo.figures import write_figures
 from twin.montecarlo.run import SETTINGS, TABLE
 from twin.outputs import OutputError
 from twin.scenario import load_scenario
@@ -49,10 +51,36 @@ def test_a_run_writes_its_table_summary_figures_and_report(reference):
     assert visit["position_error_mm"]["n"] == TRIALS
     assert visit["position_error_mm"]["median"] > 0
     assert summary["budget"] is None
-    for name in ("position_error_histograms", "error_vs_distance", "budget"):
-        assert (out / "figures" / f"{name}.png").stat().st_size > 1000
     report = (out / "report.md").read_text()
     assert "Monte Carlo against the covariance propagation" in report
+
+
+def test_the_figures_draw_the_trials(reference, tmp_path, saved):
+    # Drawn again from the run's table and summary, watched: the same PNGs as the run wrote,
+    # each the figure at its DPI, holding what the trials say.
+    out, rows = reference
+    summary = json.loads((out / "summary.json").read_text())
+    write_figures(rows, summary, tmp_path)
+    names = ("position_error_histograms.png", "error_vs_distance.png", "budget.png")
+    assert set(saved) == set(names)
+    for name in names:
+        assert (tmp_path / name).read_bytes() == (out / "figures" / name).read_bytes(), name
+        saved[name].check_png()
+    errors = [r["position_error_mm"] for r in rows]
+    visit = summary["visits"][0]
+    # One histogram (one visit): its bars count every trial, its lines mark the median.
+    (ax,) = saved["position_error_histograms.png"].figure.axes
+    assert sum(bar.get_height() for bar in ax.patches) == TRIALS
+    assert ax.patches[0].get_x() == pytest.approx(min(errors))
+    assert ax.patches[-1].get_x() + ax.patches[-1].get_width() == pytest.approx(max(errors))
+    assert any(np.allclose(ln.get_xdata(), np.median(errors)) for ln in ax.get_lines())
+    # Error against distance: the median at the visit's median distance.
+    (dots,) = saved["error_vs_distance.png"].lines("median")
+    np.testing.assert_allclose(
+        dots.get_xydata(), [[visit["distance_travelled_m"]["median"], np.median(errors)]]
+    )
+    # No one-source runs: the budget figure says so.
+    assert "no one-source runs (run with the budget)" in saved["budget.png"].texts()
 
 
 def test_the_table_is_the_same_with_two_worker_processes(smoke, reference, tmp_path):
@@ -138,8 +166,10 @@ def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
     assert main([*base, "--ray-address", "auto"]) == 2
     assert "--ray-address goes with --engine ray" in capsys.readouterr().out
     assert main(["montecarlo", str(tmp_path / "none.toml"), "--trials", "1"]) == 2
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as exit_:
         main([*base[:2], "--trials", "0"])
+    assert exit_.value.code == 2  # argparse's usage error, as the other refusals
+    assert "--trials: must be at least 1, got 0" in capsys.readouterr().err
     assert not (tmp_path / "mc").exists()
 
 

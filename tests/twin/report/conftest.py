@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.twin.report.figure_checks import saved  # noqa: F401  (a fixture)
 from twin.report.reading import planned_visits
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.geometry import floor_view_corners

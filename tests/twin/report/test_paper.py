@@ -52,6 +52,8 @@ def test_repeatability_is_second_minus_first(camera: str) -> None:
     np.testing.assert_allclose(second - first, paper.REPEATABILITY_MM[camera], atol=1.05)
 
 
-def test_route_length() -> None:
-    assert paper.ROUTE_LENGTH_M == 85.0
-    assert paper.REFERENCE_POINTS == 70
+def test_route_length_and_reference_points_are_the_halls(scenario: Scenario) -> None:
+    # The report quotes these beside the twin's run of the hall: the hall's route (its
+    # waypoints) and its reference data sets must be the paper's.
+    assert scenario.route.length == pytest.approx(paper.ROUTE_LENGTH_M, abs=0.5)
+    assert scenario.campaign.reference_points == paper.REFERENCE_POINTS

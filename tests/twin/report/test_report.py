@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 
+from tests.twin.report.figure_checks import Saved
 from twin.report import write_report
 from twin.scenario import Scenario
 
@@ -62,17 +63,22 @@ def row(text: str, label: str) -> list[str]:
     raise AssertionError(f"no row {label!r}")
 
 
-def assert_figures(out: Path) -> None:
+def assert_figures(out: Path, saved: dict[str, Saved]) -> None:
+    """The report's three figures were drawn and written where it links them, each PNG the
+    figure at its DPI."""
+    assert set(saved) == set(FIGURES)
     for name in FIGURES:
-        data = (out / "figures" / name).read_bytes()
-        assert len(data) > 1000, name
-        assert data.startswith(PNG_MAGIC), name
+        assert saved[name].path == out / "figures" / name
+        assert saved[name].path.read_bytes().startswith(PNG_MAGIC), name
+        saved[name].check_png()
 
 
-def test_full_run(scenario: Scenario, results: dict[str, Any], tmp_path: Path) -> None:
+def test_full_run(
+    scenario: Scenario, results: dict[str, Any], tmp_path: Path, saved: dict[str, Saved]
+) -> None:
     report = write_report(scenario, results, tmp_path)
     assert report == tmp_path / "report.md"
-    assert_figures(tmp_path)
+    assert_figures(tmp_path, saved)
     text = report.read_text(encoding="utf-8")
     assert_valid_tables(text)
     assert text.startswith("# Campaign report: paper_hall")
@@ -121,10 +127,10 @@ def test_full_run(scenario: Scenario, results: dict[str, Any], tmp_path: Path) -
 
 
 def test_skipped_visit_and_missing_parts(
-    scenario: Scenario, results_skipped: dict[str, Any], tmp_path: Path
+    scenario: Scenario, results_skipped: dict[str, Any], tmp_path: Path, saved: dict[str, Saved]
 ) -> None:
     text = write_report(scenario, results_skipped, tmp_path).read_text(encoding="utf-8")
-    assert_figures(tmp_path)
+    assert_figures(tmp_path, saved)
     assert_valid_tables(text)
     summary = section(text, "Summary")
     assert "Calibrated visits: 4 of 5 planned" in summary
@@ -143,7 +149,7 @@ def test_skipped_visit_and_missing_parts(
 
 @pytest.mark.parametrize("kind", ["no_calibrations", "empty"])
 def test_nothing_calibrated(
-    scenario: Scenario, results: dict[str, Any], tmp_path: Path, kind: str
+    scenario: Scenario, results: dict[str, Any], tmp_path: Path, kind: str, saved: dict[str, Saved]
 ) -> None:
     if kind == "empty":
         data: dict[str, Any] = {}
@@ -155,7 +161,7 @@ def test_nothing_calibrated(
             "parent_track": {"estimated": []},
         }
     text = write_report(scenario, data, tmp_path).read_text(encoding="utf-8")
-    assert_figures(tmp_path)
+    assert_figures(tmp_path, saved)
     assert_valid_tables(text)
     assert "Nothing was calibrated" in text
     assert "Calibrated visits: 0 of 5 planned" in text
