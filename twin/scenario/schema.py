@@ -18,7 +18,15 @@ import typing
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import PydanticCustomError
 
 from calib.camera import TsaiCamera
@@ -181,6 +189,12 @@ MAX_IMAGE_PX = 4096
 """Widest and highest image, px ("4K"; an image is rendered whole, so it must fit the
 renderer's offscreen buffer)."""
 
+MAX_RENDER_PX = 16384
+"""Widest and highest render, px. An image is rendered whole at ``supersample`` times its
+size, and OpenGL refuses a larger offscreen buffer than its limit: 16384 px for Mesa's
+software renderer (llvmpipe, what headless machines without a GPU render with), 32768 px
+for most GPUs."""
+
 ImageSide = Annotated[int, Field(ge=8, le=MAX_IMAGE_PX)]
 """A camera image's width or height, px."""
 
@@ -238,7 +252,8 @@ class CameraConfig(Frozen):
             k6]]) to use instead of kappa1 (which must then be 0); fx = sx * f, fy = f.
             Each at most 1000 either way: they act on normalised coordinates (below 1 for
             a normal lens; a wide lens's rational terms reach a few hundred).
-        sensor: the image sensor.
+        sensor: the image sensor; it renders the image whole at ``supersample`` times its
+            size, at most ``MAX_RENDER_PX`` wide and high.
     """
 
     name: Name
@@ -252,6 +267,21 @@ class CameraConfig(Frozen):
     image_size: tuple[ImageSide, ImageSide]
     opencv_distortion: tuple[Annotated[float, Field(ge=-1000.0, le=1000.0)], ...] | None = None
     sensor: SensorConfig = SensorConfig()
+
+    @field_validator("sensor")
+    @classmethod
+    def _render_fits(cls, v: SensorConfig, info: ValidationInfo) -> SensorConfig:
+        size = info.data.get("image_size")
+        if size is not None and max(size) * v.supersample > MAX_RENDER_PX:
+            most = max(1, MAX_RENDER_PX // max(size))
+            raise PydanticCustomError(
+                "render_too_large",
+                f"a {size[0]} x {size[1]} px image supersampled {v.supersample} times is "
+                f"rendered {max(size) * v.supersample} px wide, more than the renderer's "
+                f"{MAX_RENDER_PX} px",
+                {"expected": f"supersample at most {most} for this image"},
+            )
+        return v
 
     @field_validator("opencv_distortion")
     @classmethod
