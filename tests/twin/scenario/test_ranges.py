@@ -348,3 +348,17 @@ def test_a_large_but_plausible_site_loads():
     assert sc.route.length == pytest.approx(3000.0)
     assert len(sc.cameras) == len(sc.calibration.visits) == 300
     assert took < 30.0, f"validating the large site took {took:.1f} s"
+
+
+def test_a_render_larger_than_the_renderer_takes_is_refused():
+    raw = _with(("cameras", 0, "image_size"), [4096, 8])
+    raw["cameras"][0] |= {"cx": 2047.5, "cy": 3.5, "f": 2000.0, "sensor": {"supersample": 8}}
+    issue, _ = _issue_at(raw, "cameras[0].sensor")
+    assert "rendered 32768 px wide" in issue.problem
+    assert issue.expected == "supersample at most 4 for this image"
+
+
+def test_the_largest_image_may_be_supersampled_up_to_the_renderer_s_limit():
+    raw = _with(("cameras", 0, "image_size"), [4096, 3072])
+    raw["cameras"][0] |= {"cx": 2047.5, "cy": 1535.5, "f": 5000.0, "sensor": {"supersample": 4}}
+    assert "cameras[0].sensor" not in _keys_of_issues(raw)
