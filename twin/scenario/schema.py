@@ -466,12 +466,17 @@ class _SpecConfig(Frozen):
 
 
 def _model_from_dataclass(
-    cls: type, name: str, doc: str, ranges: dict[str, typing.Any]
+    cls: type,
+    name: str,
+    doc: str,
+    ranges: dict[str, typing.Any],
+    base: type[_SpecConfig] = _SpecConfig,
 ) -> type[_SpecConfig]:
     """A frozen pydantic model called ``name`` (this module's attribute of that name, so
     that scenarios pickle) with the fields, types and defaults of dataclass ``cls``, each
     field constrained by its entry of ``ranges`` (a ``Field(...)``; every field needs one,
-    so that a field added to the dataclass gets a range too)."""
+    so that a field added to the dataclass gets a range too), on ``base`` (which may add
+    checks between the fields)."""
     hints = typing.get_type_hints(cls)
     names = [f.name for f in dataclasses.fields(cls)]
     if set(ranges) != set(names):
@@ -485,7 +490,7 @@ def _model_from_dataclass(
         else:
             default = ...
         fields[f.name] = (Annotated[hints[f.name], ranges[f.name]], default)
-    model = create_model(name, __base__=_SpecConfig, __module__=__name__, **fields)
+    model = create_model(name, __base__=base, __module__=__name__, **fields)
     model.__doc__ = doc
     model._spec_cls = cls
     return model
@@ -496,33 +501,54 @@ TotalStationConfig = _model_from_dataclass(
     "TotalStationConfig",
     """Total station noise (SI units); fields and defaults of TotalStationSpec.
 
-    Ranges: the paper's instrument (Table I) has 2 mm + 2 ppm and 5 arc-seconds; noise up to
-    0.1 m, 1000 ppm and 0.01 rad (34 arc-minutes), and resolutions as coarse, cover any
-    instrument worth simulating, stress tests included. ``range_min`` is at most 100 m;
+    Ranges: the paper's instrument (Table I) has 2 mm + 2 ppm and 5 arc-seconds, and
+    builders' instruments are a few times worse; noise up to 5 cm, 100 ppm and 1e-3 rad
+    (206 arc-seconds), and resolutions up to 1 cm and 1e-3 rad, leave room for stress
+    tests (the campaign already fails at a tenth of them). ``range_min`` is at most 100 m;
     ``range_max`` at most 10 km, beyond the diagonal of the largest space (7.1 km; the
     paper's instrument reaches 2.2 km). ``aim_cone`` is below pi/2 rad.
     """,
     {
-        "distance_sigma_const": Field(ge=0.0, le=0.1),
-        "distance_sigma_ppm": Field(ge=0.0, le=1000.0),
-        "angle_sigma": Field(ge=0.0, le=0.01),
-        "distance_resolution": Field(ge=0.0, le=0.1),
-        "angle_resolution": Field(ge=0.0, le=0.01),
+        "distance_sigma_const": Field(ge=0.0, le=0.05),
+        "distance_sigma_ppm": Field(ge=0.0, le=100.0),
+        "angle_sigma": Field(ge=0.0, le=1e-3),
+        "distance_resolution": Field(ge=0.0, le=0.01),
+        "angle_resolution": Field(ge=0.0, le=1e-3),
         "range_min": Field(gt=0.0, le=100.0),
         "range_max": Field(gt=0.0, le=10_000.0),
         "aim_cone": Field(gt=0.0, lt=0.5 * math.pi),
     },
 )
+
+
+class _InclinometerChecks(_SpecConfig):
+    """Base of :data:`InclinometerConfig`: its noise must fit its working range."""
+
+    @model_validator(mode="after")
+    def _noise_within_working_range(self) -> typing.Self:
+        sigma, working_range = self.sigma, self.working_range  # fields of the model below
+        if sigma > 0.1 * working_range:
+            raise PydanticCustomError(
+                "noise_beyond_range",
+                f"sigma = {sigma:g} rad is more than a tenth of working_range = "
+                f"{working_range:g} rad: a level instrument would read out of its range",
+                {"expected": f"sigma at most {0.1 * working_range:g} rad"},
+            )
+        return self
+
+
 InclinometerConfig = _model_from_dataclass(
     InclinometerSpec,
     "InclinometerConfig",
     """Inclination sensor noise (SI units); fields of InclinometerSpec.
 
-    Ranges: ``sigma`` at most 0.01 rad (the default is 1 arc-second); ``working_range``
-    positive and at most 0.1 rad (5.7 deg; the default is 3 arc-minutes, floor patches tilt
-    by at most 1 deg).
+    Ranges: ``sigma`` at most 1e-3 rad (the default is 1 arc-second) and at most a tenth of
+    ``working_range``, else a level instrument would read beyond its range;
+    ``working_range`` positive and at most 0.1 rad (5.7 deg; the default is 3 arc-minutes,
+    floor patches tilt by at most 1 deg).
     """,
-    {"sigma": Field(ge=0.0, le=0.01), "working_range": Field(gt=0.0, le=0.1)},
+    {"sigma": Field(ge=0.0, le=1e-3), "working_range": Field(gt=0.0, le=0.1)},
+    base=_InclinometerChecks,
 )
 OdometryConfig = _model_from_dataclass(
     OdometrySpec,
