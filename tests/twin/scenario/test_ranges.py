@@ -54,9 +54,9 @@ FIELDS = [
     (("robots", "children", 0, "start_yaw_deg"), "a number in [-360, 360]"),
     (("marker", "cubes", 0, 0), "a number in [-1, 1]"),
     (("marker", "leds", 3, 2), "a number in [0.25, 2.5]"),
-    (("noise", "total_station", "angle_sigma"), "a number in [0, 0.01]"),
+    (("noise", "total_station", "angle_sigma"), "a number in [0, 0.001]"),
     (("noise", "total_station", "range_max"), "a number in (0, 10000]"),
-    (("noise", "inclinometer", "sigma"), "a number in [0, 0.01]"),
+    (("noise", "inclinometer", "sigma"), "a number in [0, 0.001]"),
     (("noise", "odometry", "heading_noise"), "a number in [0, 0.1]"),
     (("noise", "led_detection_px"), "a number in [0, 10]"),
     (("route", "waypoints", 1, 0), "a number in [-5000, 5000]"),
@@ -104,16 +104,18 @@ def _keys_of_issues(raw: dict[str, Any]) -> list[str]:
 
 
 def _interval(expected: str) -> tuple[float, bool, float, bool]:
-    """(lo, lo included, hi, hi included) of "a number in [lo, hi)" and the like."""
+    """(lo, lo included, hi, hi included) of "a number in [lo, hi)" and the like (ints for
+    "an integer in [lo, hi]")."""
+    number = int if expected.startswith("an integer") else float
     text = expected.split(" in ")[1]
     lo, hi = text[1:-1].split(", ")
-    return float(lo), text[0] == "[", float(hi), text[-1] == "]"
+    return number(lo), text[0] == "[", number(hi), text[-1] == "]"
 
 
 def _outside(expected: str) -> st.SearchStrategy:
     lo, lo_in, hi, hi_in = _interval(expected)
     if expected.startswith("an integer"):
-        return st.integers(max_value=int(lo) - 1) | st.integers(min_value=int(hi) + 1)
+        return st.integers(max_value=lo - 1) | st.integers(min_value=hi + 1)
     below = st.floats(max_value=lo, exclude_max=lo_in)
     above = st.floats(min_value=hi, exclude_min=hi_in)
     return below | above | st.just(math.nan)
@@ -122,7 +124,7 @@ def _outside(expected: str) -> st.SearchStrategy:
 def _inside(expected: str) -> st.SearchStrategy:
     lo, lo_in, hi, hi_in = _interval(expected)
     if expected.startswith("an integer"):
-        return st.integers(min_value=int(lo), max_value=int(hi))
+        return st.integers(min_value=lo, max_value=hi)
     return st.floats(min_value=lo, max_value=hi, exclude_min=not lo_in, exclude_max=not hi_in)
 
 
@@ -183,6 +185,14 @@ def test_too_many_items_are_refused_with_the_accepted_count(path, items, expecte
     assert f"not {items}" in issue.problem
     assert f"{items} items)" in message  # the long value is cut short, its length named
     assert len(message) < 1000
+
+
+def test_an_inclinometer_noisier_than_a_tenth_of_its_range_is_refused():
+    # 1 mrad of noise in a 3 arc-minute (0.87 mrad) range: a level instrument would read
+    # out of range.
+    issue, _ = _issue_at(_with(("noise", "inclinometer", "sigma"), 1e-3), "noise.inclinometer")
+    assert "more than a tenth of working_range" in issue.problem
+    assert issue.expected == "sigma at most 8.72665e-05 rad"
 
 
 def test_a_route_longer_than_10_km_is_refused():
