@@ -3,11 +3,11 @@
 The twin is made for sites such as a town block or a hospital floor: routes of a few
 kilometres, a few hundred cameras, spaces up to a few kilometres across and as high as
 buildings. A number far outside such a site is a slip (a unit, an exponent, a missing
-decimal point), not a site: left alone it makes a run misbehave (a hall 1e308 m long
-builds walls that no line of sight gets past; a focal length of 1e308 px overflows the
-simulator's single-precision camera). The schema refuses it and the loader names the
-accepted range. NaN and infinity are refused everywhere (the schema's models set
-``allow_inf_nan=False``).
+decimal point), not a site: left alone it makes a run misbehave (in a hall 1e308 m long
+the robots sink through a floor the simulator cannot hold, and the total station never
+finds a prism; a focal length of 1e308 px overflows the simulator's single-precision
+camera). The schema refuses it and the loader names the accepted range. NaN and infinity
+are refused everywhere (the schema's models set ``allow_inf_nan=False``).
 
 Ranges that belong to one field are written at that field, with their argument in its
 docstring; those shared by many fields are here.
