@@ -168,8 +168,7 @@ def _type_at(loc: tuple[Any, ...]) -> tuple[Any, list[Any]]:
             else:
                 return None, []
         else:
-            is_model = isinstance(annotation, type) and issubclass(annotation, BaseModel)
-            field = annotation.model_fields.get(str(part)) if is_model else None
+            field = annotation.model_fields.get(str(part)) if _is_model(annotation) else None
             if field is None:
                 return None, []
             annotation, constraints = _unwrap(field.annotation)
@@ -177,7 +176,12 @@ def _type_at(loc: tuple[Any, ...]) -> tuple[Any, list[Any]]:
     return annotation, constraints
 
 
+def _is_model(annotation: Any) -> bool:
+    return isinstance(annotation, type) and issubclass(annotation, BaseModel)
+
+
 def _number(x: float) -> str:
+    """``x`` as a range's bound: 5000 rather than 5000.0, 1e-05 as written by repr."""
     if isinstance(x, float) and x.is_integer() and abs(x) < 1e16:
         return str(int(x))
     return repr(x)
@@ -229,8 +233,7 @@ def _issue(err: Mapping[str, Any], data: Mapping[str, Any]) -> ScenarioIssue:
     typ = err["type"]
     if typ == "extra_forbidden":
         model = _type_at(loc[:-1])[0]
-        is_model = isinstance(model, type) and issubclass(model, BaseModel)
-        keys = ", ".join(model.model_fields) if is_model else "a documented key"
+        keys = ", ".join(model.model_fields) if _is_model(model) else "a documented key"
         return ScenarioIssue(_key(loc), "unknown key", None, f"one of: {keys}")
     value = None if typ == "missing" else _value_at(data, loc)
     problem = "missing" if typ == "missing" else err["msg"].removeprefix("Value error, ")
