@@ -716,7 +716,8 @@ class CampaignSettings(Frozen):
         led_sequence: LED switching sequence, ``binary`` (6 frames for 4 LEDs) or
             ``one_at_a_time`` (6 frames).
         lock_retries: further aims after a lost prism lock before a shot is given up.
-        pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2.
+        pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2: 0.5 um
+            (the smallest pixels made are about 0.56 um) to 0.1 mm.
         strategy: the campaign's decisions (visits, legs, data stops) by name:
             ``paper`` (the paper's; the default for now). ``twin run --strategy`` overrides
             it.
@@ -729,7 +730,7 @@ class CampaignSettings(Frozen):
     formation: FormationSettings = FormationSettings()
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
-    pixel_size_mm: Annotated[float, Field(gt=0.0, le=0.1)] = 0.015
+    pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
     strategy: Name = "paper"
 
 

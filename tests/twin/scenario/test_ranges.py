@@ -64,6 +64,7 @@ FIELDS = [
     (("calibration", "visits", 0, "yaw_deg"), "a number in [-360, 360]"),
     (("people", 0, "speed"), "a number in [0.1, 3]"),
     (("people", 0, "start_offset"), "a number in [0, 20000]"),
+    (("campaign", "pixel_size_mm"), "a number in [0.0005, 0.1]"),
     (("sim", "timestep"), "a number in [0.0002, 0.01]"),
     (("seed",), "an integer in [0, 9223372036854775807]"),
 ]
