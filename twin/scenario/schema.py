@@ -504,9 +504,10 @@ TotalStationConfig = _model_from_dataclass(
     Ranges: the paper's instrument (Table I) has 2 mm + 2 ppm and 5 arc-seconds, and
     builders' instruments are a few times worse; noise up to 5 cm, 100 ppm and 1e-3 rad
     (206 arc-seconds), and resolutions up to 1 cm and 1e-3 rad, leave room for stress
-    tests (the campaign already fails at a tenth of them). ``range_min`` is at most 100 m;
+    tests (the campaign already fails at a tenth of them). ``range_min`` is 0.1 m to 100 m;
     ``range_max`` at most 10 km, beyond the diagonal of the largest space (7.1 km; the
-    paper's instrument reaches 2.2 km). ``aim_cone`` is below pi/2 rad.
+    paper's instrument reaches 2.2 km). ``aim_cone`` is 0.01 rad (0.6 deg, a narrow
+    automatic aim) up to pi/2 rad.
     """,
     {
         "distance_sigma_const": Field(ge=0.0, le=0.05),
@@ -514,9 +515,9 @@ TotalStationConfig = _model_from_dataclass(
         "angle_sigma": Field(ge=0.0, le=1e-3),
         "distance_resolution": Field(ge=0.0, le=0.01),
         "angle_resolution": Field(ge=0.0, le=1e-3),
-        "range_min": Field(gt=0.0, le=100.0),
+        "range_min": Field(ge=0.1, le=100.0),
         "range_max": Field(gt=0.0, le=10_000.0),
-        "aim_cone": Field(gt=0.0, lt=0.5 * math.pi),
+        "aim_cone": Field(ge=0.01, lt=0.5 * math.pi),
     },
 )
 
@@ -544,10 +545,10 @@ InclinometerConfig = _model_from_dataclass(
 
     Ranges: ``sigma`` at most 1e-3 rad (the default is 1 arc-second) and at most a tenth of
     ``working_range``, else a level instrument would read beyond its range;
-    ``working_range`` positive and at most 0.1 rad (5.7 deg; the default is 3 arc-minutes,
-    floor patches tilt by at most 1 deg).
+    ``working_range`` 1e-4 rad (21 arc-seconds) to 0.1 rad (5.7 deg; the default is 3
+    arc-minutes, floor patches tilt by at most 1 deg).
     """,
-    {"sigma": Field(ge=0.0, le=1e-3), "working_range": Field(gt=0.0, le=0.1)},
+    {"sigma": Field(ge=0.0, le=1e-3), "working_range": Field(ge=1e-4, le=0.1)},
     base=_InclinometerChecks,
 )
 OdometryConfig = _model_from_dataclass(
