@@ -26,6 +26,7 @@ from twin.scenario.errors import ScenarioIssue
 from twin.scenario.geometry import (
     inside_obstacle,
     inside_space,
+    obstacles_near,
     polyline_points,
     rectangle_corners,
     rectangles_gap,
@@ -114,7 +115,7 @@ def _free_issue(
             f"x in [{x0 + margin:.2f}, {x1 - margin:.2f}] and y in "
             f"[{y0 + margin:.2f}, {y1 - margin:.2f}] m",
         )
-    for ob in sc.space.obstacles:
+    for ob in obstacles_near(sc.space.obstacles, [xy], margin):
         if inside_obstacle(ob, [xy], margin)[0]:
             return ScenarioIssue(
                 key,
@@ -213,6 +214,12 @@ def _check_world_frame(sc: Scenario) -> list[ScenarioIssue]:
 def _check_cameras(sc: Scenario) -> list[ScenarioIssue]:
     issues = []
     z0, z1 = sc.space.z_range
+    obstacles = sc.space.obstacles
+    xyz = np.array([cam.position for cam in sc.cameras])
+    # inside[k, i]: camera i lies in obstacle k, below its top.
+    inside = np.array(
+        [inside_obstacle(ob, xyz[:, :2]) & (xyz[:, 2] < z0 + ob.size[2]) for ob in obstacles]
+    ).reshape(len(obstacles), len(sc.cameras))
     for i, cam in enumerate(sc.cameras):
         key = f"cameras[{i}].position"
         x, y, z = cam.position
@@ -227,16 +234,15 @@ def _check_cameras(sc: Scenario) -> list[ScenarioIssue]:
                 )
             )
             continue
-        for ob in sc.space.obstacles:
-            if inside_obstacle(ob, [(x, y)])[0] and z < z0 + ob.size[2]:
-                issues.append(
-                    ScenarioIssue(
-                        key,
-                        f"camera {cam.name!r} lies inside obstacle {ob.name!r}",
-                        list(cam.position),
-                        "a position in free space",
-                    )
-                )
+        issues += [
+            ScenarioIssue(
+                key,
+                f"camera {cam.name!r} lies inside obstacle {obstacles[k].name!r}",
+                list(cam.position),
+                "a position in free space",
+            )
+            for k in np.flatnonzero(inside[:, i])
+        ]
     return issues
 
 

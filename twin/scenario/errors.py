@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sized
 from dataclasses import dataclass
 from pathlib import Path
+
+# Longest value an issue's message shows whole, characters; a longer one (a list of
+# thousands of waypoints) is cut short.
+SHOWN_CHARS = 160
 
 
 @dataclass(frozen=True)
@@ -23,8 +28,17 @@ class ScenarioIssue:
     expected: str
 
     def __str__(self) -> str:
-        got = "" if self.value is None else f" (got {self.value!r})"
+        got = "" if self.value is None else f" (got {_shown(self.value)})"
         return f"{self.key}: {self.problem}{got}; expected {self.expected}"
+
+
+def _shown(value: object) -> str:
+    """``repr(value)``, cut short after ``SHOWN_CHARS`` characters."""
+    text = repr(value)
+    if len(text) <= SHOWN_CHARS:
+        return text
+    items = f", {len(value)} items" if isinstance(value, Sized) else ""
+    return f"{text[:SHOWN_CHARS]}... ({len(text)} characters{items})"
 
 
 class ScenarioError(ValueError):

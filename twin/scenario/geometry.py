@@ -36,6 +36,23 @@ def inside_obstacle(
     return (np.abs(q[:, 0]) <= hx) & (np.abs(q[:, 1]) <= hy)
 
 
+def obstacles_near(
+    obstacles: tuple[Obstacle, ...], points_xy: ArrayLike, margin: float = 0.0
+) -> tuple[Obstacle, ...]:
+    """The obstacles whose footprint grown by ``margin`` (m) may reach the bounding box of
+    (N, 2) floor points: the only ones that can hold one of the points within ``margin`` or
+    block a segment between two of them. A cheap test (each footprint as its enclosing
+    circle) that spares the exact ones most obstacles of a large space."""
+    if not obstacles:
+        return ()
+    p = np.array(points_xy, dtype=float, ndmin=2)
+    centre = np.array([ob.center for ob in obstacles], dtype=float)
+    radius = np.array([0.5 * np.hypot(ob.size[0], ob.size[1]) for ob in obstacles]) + margin
+    nearest = np.clip(centre, p.min(axis=0), p.max(axis=0))
+    near = np.hypot(*(centre - nearest).T) <= radius
+    return tuple(ob for ob, ok in zip(obstacles, near, strict=True) if ok)
+
+
 def rectangle_corners(center: ArrayLike, size: ArrayLike, yaw: float = 0.0) -> NDArray[np.float64]:
     """(4, 2) corners of a rectangle of (length, width) ``size`` (m) turned by ``yaw`` (rad)
     about its ``center``."""

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import json
 import tomllib
+import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
+import annotated_types
 import yaml
 from pydantic import BaseModel, ValidationError
+from pydantic.fields import FieldInfo
 
 from twin.scenario.cross_checks import check_scenario
 from twin.scenario.errors import ScenarioError, ScenarioIssue
@@ -19,6 +22,7 @@ from twin.scenario.schema import Scenario
 # What a user should have written, by pydantic error type.
 _EXPECTED = {
     "float_type": "a number",
+    "finite_number": "a finite number",
     "float_parsing": "a number",
     "int_type": "an integer",
     "int_parsing": "an integer",
@@ -32,14 +36,18 @@ _EXPECTED = {
     "model_attributes_type": "a table (section)",
     "missing": "this key to be present",
     "literal_error": None,
-    "greater_than": None,
-    "greater_than_equal": None,
-    "less_than": None,
-    "less_than_equal": None,
-    "too_short": None,
-    "too_long": None,
     "string_pattern_mismatch": "a name of letters, digits and _ that starts with a letter",
 }
+
+# Errors of a number out of its range (NaN and infinity included): the expected value is
+# the range, read from the schema.
+_RANGE_ERRORS = (
+    "greater_than",
+    "greater_than_equal",
+    "less_than",
+    "less_than_equal",
+    "finite_number",
+)
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -128,42 +136,105 @@ def _value_at(data: Any, loc: tuple[Any, ...]) -> Any:
     return data
 
 
-def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
-    """The pydantic model of the table at ``loc`` (to list its keys), if it is one."""
-    model: Any = Scenario
+def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:
+    """``annotation`` without its ``Annotated`` wrappers and its ``| None``, and the
+    constraints (``annotated_types`` metadata) those wrappers carried."""
+    constraints: list[Any] = []
+    while True:
+        origin = typing.get_origin(annotation)
+        args = typing.get_args(annotation)
+        if origin is Annotated:
+            annotation = args[0]
+            for extra in args[1:]:
+                constraints += extra.metadata if isinstance(extra, FieldInfo) else [extra]
+        elif origin in (typing.Union, types.UnionType) and len(args) == 2 and None in args:
+            annotation = next(a for a in args if a is not type(None))
+        else:
+            return annotation, constraints
+
+
+def _type_at(loc: tuple[Any, ...]) -> tuple[Any, list[Any]]:
+    """The type of the scenario's value at ``loc`` and the constraints on it; (None, [])
+    where ``loc`` leads nowhere known."""
+    annotation: Any = Scenario
+    constraints: list[Any] = []
     for part in loc:
         if isinstance(part, int):
-            continue
-        if not (isinstance(model, type) and issubclass(model, BaseModel)):
-            return None
-        field = model.model_fields.get(str(part))
-        if field is None:
-            return None
-        model = _inner_model(field.annotation)
-    return model if isinstance(model, type) and issubclass(model, BaseModel) else None
+            args = typing.get_args(annotation) if typing.get_origin(annotation) is tuple else ()
+            if len(args) == 2 and args[1] is Ellipsis:
+                annotation, constraints = _unwrap(args[0])
+            elif part < len(args):
+                annotation, constraints = _unwrap(args[part])
+            else:
+                return None, []
+        else:
+            field = annotation.model_fields.get(str(part)) if _is_model(annotation) else None
+            if field is None:
+                return None, []
+            annotation, constraints = _unwrap(field.annotation)
+            constraints = [*field.metadata, *constraints]
+    return annotation, constraints
 
 
-def _inner_model(annotation: Any) -> Any:
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in typing.get_args(annotation):
-        found = _inner_model(arg)
-        if found is not None:
-            return found
-    return None
+def _is_model(annotation: Any) -> bool:
+    return isinstance(annotation, type) and issubclass(annotation, BaseModel)
+
+
+def _number(x: float) -> str:
+    """``x`` as a range's bound: 5000 rather than 5000.0, 1e-05 as written by repr."""
+    if isinstance(x, float) and x.is_integer() and abs(x) < 1e16:
+        return str(int(x))
+    return repr(x)
+
+
+def _range(annotation: Any, constraints: list[Any]) -> str | None:
+    """The accepted range of a number, as "a number in [lo, hi]", if it has one."""
+    lo = hi = None
+    for c in constraints:
+        if isinstance(c, annotated_types.Ge):
+            lo = f"[{_number(c.ge)}"
+        elif isinstance(c, annotated_types.Gt):
+            lo = f"({_number(c.gt)}"
+        elif isinstance(c, annotated_types.Le):
+            hi = f"{_number(c.le)}]"
+        elif isinstance(c, annotated_types.Lt):
+            hi = f"{_number(c.lt)})"
+    if lo is None and hi is None:
+        return None
+    what = "an integer" if annotation is int else "a number"
+    return f"{what} in {lo or '(-inf'}, {hi or 'inf)'}"
+
+
+def _count(constraints: list[Any]) -> str | None:
+    """The accepted number of items of a list, if it is limited."""
+    least = next((c.min_length for c in constraints if isinstance(c, annotated_types.MinLen)), 0)
+    most = next((c.max_length for c in constraints if isinstance(c, annotated_types.MaxLen)), None)
+    if most is None:
+        return f"at least {least} items" if least else None
+    return f"{least} to {most} items" if least else f"at most {most} items"
+
+
+def _expected(err: Mapping[str, Any], loc: tuple[Any, ...]) -> str:
+    """What the user should have written where ``err`` happened."""
+    typ = err["type"]
+    if "expected" in err.get("ctx", {}):
+        return str(err["ctx"]["expected"])
+    if typ in _RANGE_ERRORS:
+        return _range(*_type_at(loc)) or _EXPECTED.get(typ) or err["msg"]
+    if typ in ("too_short", "too_long"):
+        return _count(_type_at(loc)[1]) or err["msg"]
+    if typ == "value_error":
+        return "a consistent value (see the schema's documentation)"
+    return _EXPECTED.get(typ) or err["msg"]
 
 
 def _issue(err: Mapping[str, Any], data: Mapping[str, Any]) -> ScenarioIssue:
     loc = tuple(err["loc"])
     typ = err["type"]
     if typ == "extra_forbidden":
-        model = _model_at(loc[:-1])
-        keys = ", ".join(model.model_fields) if model else "a documented key"
+        model = _type_at(loc[:-1])[0]
+        keys = ", ".join(model.model_fields) if _is_model(model) else "a documented key"
         return ScenarioIssue(_key(loc), "unknown key", None, f"one of: {keys}")
     value = None if typ == "missing" else _value_at(data, loc)
-    expected = _EXPECTED.get(typ) or err["msg"]
-    problem = "missing" if typ == "missing" else err["msg"]
-    if typ == "value_error":
-        problem = err["msg"].removeprefix("Value error, ")
-        expected = "a consistent value (see the schema's documentation)"
-    return ScenarioIssue(_key(loc), problem, value, expected)
+    problem = "missing" if typ == "missing" else err["msg"].removeprefix("Value error, ")
+    return ScenarioIssue(_key(loc), problem, value, _expected(err, loc))

@@ -18,7 +18,16 @@ import typing
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    create_model,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
 from calib.camera import TsaiCamera
 from calib.lens_coverage import lens_fold_problem
@@ -26,18 +35,35 @@ from calib.opencv_camera import OpenCVCamera
 from calib.rotation import wrap_angle
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.scenario.limits import (
+    LONGEST_PATH,
+    MAX_CAMERAS,
+    MAX_OBSTACLES,
+    MAX_PEOPLE,
+    MAX_VISITS,
+    MAX_WAYPOINTS,
+    SITE_SPAN,
+    AngleDeg,
+    Coordinate,
+    DirectionComponent,
+    Height,
+    Point2,
+    Point3,
+    RoomHeight,
+    RoomSpan,
+    Seed,
+    Size,
+)
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PLATFORMS, OdometrySpec, Platform
 
-Vec2 = tuple[float, float]
-Vec3 = tuple[float, float, float]
 Name = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=40)]
-Positive = Annotated[float, Field(gt=0.0)]
 
 
 class Frozen(BaseModel):
-    """Base of every scenario model: immutable, unknown keys rejected, no type coercion."""
+    """Base of every scenario model: immutable, unknown keys rejected, no type coercion,
+    no NaN or infinity."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid", strict=True)
+    model_config = ConfigDict(frozen=True, extra="forbid", strict=True, allow_inf_nan=False)
 
 
 # -- the space -------------------------------------------------------------------------------
@@ -48,16 +74,17 @@ class Obstacle(Frozen):
         name: identifier (also the MuJoCo geom name prefix).
         kind: ``box`` (a closed structure) or ``stairs`` (steps rising along its local x).
         center: (x, y) of the footprint's centre, m.
-        size: (x, y, z) footprint length and width and height, m.
+        size: (x, y, z) footprint length and width and height, m (0.01 m, a post or a pane
+            of glass, up to the largest space's length and the tallest building's height).
         yaw_deg: rotation of the footprint about z, degrees.
         steps: number of steps (stairs only).
     """
 
     name: Name
     kind: Literal["box", "stairs"] = "box"
-    center: Vec2
-    size: tuple[Positive, Positive, Positive]
-    yaw_deg: float = 0.0
+    center: Point2
+    size: tuple[Size, Size, Height]
+    yaw_deg: AngleDeg = 0.0
     steps: Annotated[int, Field(ge=2, le=60)] = 12
 
     @property
@@ -79,8 +106,8 @@ class FloorPatch(Frozen):
     """
 
     name: Name
-    center: Vec2
-    size: tuple[Positive, Positive]
+    center: Point2
+    size: tuple[Size, Size]
     tilt_arcmin: tuple[
         Annotated[float, Field(ge=-60.0, le=60.0)], Annotated[float, Field(ge=-60.0, le=60.0)]
     ]
@@ -101,7 +128,8 @@ class Lighting(Frozen):
         shadows: whether the lights cast shadows (3-5x slower rendering).
         ambient: ambient light level of the whole scene (MuJoCo's headlight ambient), 0..1.
         diffuse: diffuse level of each overhead point light, 0..1.
-        spacing: distance between overhead lights, m.
+        spacing: distance between overhead lights, m (more than 1 m, at most the largest
+            space's length: the lights are at most 8 anyway).
         flicker: relative standard deviation of the light level, drawn afresh for every
             captured camera frame (0.05: the level varies by about 5 % between frames).
         drift_per_frame: relative change of the light level from one captured frame to
@@ -111,7 +139,7 @@ class Lighting(Frozen):
     shadows: bool = False
     ambient: Annotated[float, Field(ge=0.0, le=1.0)] = 0.4
     diffuse: Annotated[float, Field(ge=0.0, le=1.0)] = 0.6
-    spacing: Annotated[float, Field(gt=1.0)] = 15.0
+    spacing: Annotated[float, Field(gt=1.0, le=SITE_SPAN)] = 15.0
     flicker: Annotated[float, Field(ge=0.0, le=0.5)] = 0.0
     drift_per_frame: Annotated[float, Field(ge=-0.5, le=0.5)] = 0.0
 
@@ -120,41 +148,57 @@ class Space(Frozen):
     """The space the robots work in: a rectangular room with walls.
 
     Attributes:
-        size: (x, y, z) inner length, width and height, m.
+        size: (x, y, z) inner length, width and height, m: 1 m (the robots must fit) up to
+            a few kilometres across (``twin.scenario.limits.SITE_SPAN``) and as high as
+            the tallest building (``SITE_HEIGHT``).
         origin: (x, y) world coordinates of the inner corner with the smallest x and y, m.
         floor_z: height of the floor in the world frame, m (the world frame is the
             instrument frame, so the floor is below it).
-        wall_thickness: m.
-        obstacles: inaccessible areas.
-        floor_patches: tilted patches of floor.
+        wall_thickness: m, 1 cm to 2 m.
+        obstacles: inaccessible areas (at most ``MAX_OBSTACLES``).
+        floor_patches: tilted patches of floor (at most ``MAX_OBSTACLES``).
         lighting: the lights.
     """
 
-    size: tuple[Positive, Positive, Positive]
-    origin: Vec2
-    floor_z: float = -INSTRUMENT_HEIGHT
-    wall_thickness: Annotated[float, Field(gt=0.0, le=2.0)] = 0.3
-    obstacles: tuple[Obstacle, ...] = ()
-    floor_patches: tuple[FloorPatch, ...] = ()
+    size: tuple[RoomSpan, RoomSpan, RoomHeight]
+    origin: Point2
+    floor_z: Coordinate = -INSTRUMENT_HEIGHT
+    wall_thickness: Annotated[float, Field(ge=0.01, le=2.0)] = 0.3
+    obstacles: tuple[Obstacle, ...] = Field(default=(), max_length=MAX_OBSTACLES)
+    floor_patches: tuple[FloorPatch, ...] = Field(default=(), max_length=MAX_OBSTACLES)
     lighting: Lighting = Lighting()
 
     @property
-    def x_range(self) -> Vec2:
+    def x_range(self) -> tuple[float, float]:
         """(min, max) of x inside the walls, m."""
         return (self.origin[0], self.origin[0] + self.size[0])
 
     @property
-    def y_range(self) -> Vec2:
+    def y_range(self) -> tuple[float, float]:
         """(min, max) of y inside the walls, m."""
         return (self.origin[1], self.origin[1] + self.size[1])
 
     @property
-    def z_range(self) -> Vec2:
+    def z_range(self) -> tuple[float, float]:
         """(floor, ceiling) heights in the world frame, m."""
         return (self.floor_z, self.floor_z + self.size[2])
 
 
 # -- cameras ---------------------------------------------------------------------------------
+MAX_IMAGE_PX = 4096
+"""Widest and highest image, px ("4K"; an image is rendered whole, so it must fit the
+renderer's offscreen buffer)."""
+
+MAX_RENDER_PX = 16384
+"""Widest and highest render, px. An image is rendered whole at ``supersample`` times its
+size, and OpenGL refuses a larger offscreen buffer than its limit: 16384 px for Mesa's
+software renderer (llvmpipe, what headless machines without a GPU render with), 32768 px
+for most GPUs."""
+
+ImageSide = Annotated[int, Field(ge=8, le=MAX_IMAGE_PX)]
+"""A camera image's width or height, px."""
+
+
 class SensorConfig(Frozen):
     """The image sensor behind a camera's lens; defaults look like a 2007-era 320x240 camera.
 
@@ -192,34 +236,58 @@ class CameraConfig(Frozen):
         name: identifier (also the MuJoCo camera name).
         position: (3,) optical centre in the world frame, m.
         view_direction: (3,) direction of the optical axis in the world frame (any length).
-        f: focal length, px. cx, cy: principal point, px (OpenCV: (0, 0) is the centre of
-            the top-left pixel). kappa1: radial distortion, 1/px^2 (Tsai). sx: scale factor.
+        f: focal length, px, 1 to 1e5. A pinhole camera ``w`` px wide with a horizontal
+            field of view ``a`` has ``f = w / (2 tan(a / 2))``: an 8 px camera seeing
+            150 deg has f = 1.1 px, a 4096 px camera seeing 2.3 deg has f = 1e5 px, and
+            no camera of the twin (8-4096 px, one that sees a scene) lies outside that.
+        cx, cy: principal point, px (OpenCV: (0, 0) is the centre of the top-left pixel),
+            within one widest image (4096 px) of the widest image: -4096 to 8192.
+        kappa1: radial distortion, 1/px^2 (Tsai), at most 0.1 either way. The smallest
+            image's corners lie 5.7 px from its centre, where kappa1 = 0.1 already moves
+            them by three times their distance; larger images take far less (a kappa1 that
+            folds the image inside its corners is refused on its own).
+        sx: scale factor.
         image_size: (width, height), px.
         opencv_distortion: OpenCV's distortion coefficients (k1, k2, p1, p2[, k3[, k4, k5,
             k6]]) to use instead of kappa1 (which must then be 0); fx = sx * f, fy = f.
-        sensor: the image sensor.
+            Each at most 1000 either way: they act on normalised coordinates (below 1 for
+            a normal lens; a wide lens's rational terms reach a few hundred).
+        sensor: the image sensor; it renders the image whole at ``supersample`` times its
+            size, at most ``MAX_RENDER_PX`` wide and high.
     """
 
     name: Name
-    position: Vec3
-    view_direction: Vec3
-    f: Positive
-    cx: float
-    cy: float
-    kappa1: float = 0.0
+    position: Point3
+    view_direction: tuple[DirectionComponent, DirectionComponent, DirectionComponent]
+    f: Annotated[float, Field(ge=1.0, le=1.0e5)]
+    cx: Annotated[float, Field(ge=-MAX_IMAGE_PX, le=2 * MAX_IMAGE_PX)]
+    cy: Annotated[float, Field(ge=-MAX_IMAGE_PX, le=2 * MAX_IMAGE_PX)]
+    kappa1: Annotated[float, Field(ge=-0.1, le=0.1)] = 0.0
     sx: Annotated[float, Field(gt=0.5, lt=2.0)] = 1.0
-    image_size: tuple[Annotated[int, Field(ge=8, le=4096)], Annotated[int, Field(ge=8, le=4096)]]
-    opencv_distortion: tuple[float, ...] | None = None
+    image_size: tuple[ImageSide, ImageSide]
+    opencv_distortion: tuple[Annotated[float, Field(ge=-1000.0, le=1000.0)], ...] | None = None
     sensor: SensorConfig = SensorConfig()
+
+    @field_validator("sensor")
+    @classmethod
+    def _render_fits(cls, v: SensorConfig, info: ValidationInfo) -> SensorConfig:
+        size = info.data.get("image_size")
+        if size is not None and max(size) * v.supersample > MAX_RENDER_PX:
+            most = max(1, MAX_RENDER_PX // max(size))
+            raise PydanticCustomError(
+                "render_too_large",
+                f"a {size[0]} x {size[1]} px image supersampled {v.supersample} times is "
+                f"rendered {max(size) * v.supersample} px wide, more than the renderer's "
+                f"{MAX_RENDER_PX} px",
+                {"expected": f"supersample at most {most} for this image"},
+            )
+        return v
 
     @field_validator("opencv_distortion")
     @classmethod
     def _opencv_length(cls, v: tuple[float, ...] | None) -> tuple[float, ...] | None:
-        if v is not None:
-            if len(v) not in (4, 5, 8):
-                raise ValueError(f"must have 4, 5 or 8 coefficients, got {len(v)}")
-            if not all(math.isfinite(c) for c in v):
-                raise ValueError("coefficients must be finite")
+        if v is not None and len(v) not in (4, 5, 8):
+            raise ValueError(f"must have 4, 5 or 8 coefficients, got {len(v)}")
         return v
 
     @model_validator(mode="after")
@@ -235,7 +303,7 @@ class CameraConfig(Frozen):
 
     @field_validator("view_direction")
     @classmethod
-    def _direction_ok(cls, v: Vec3) -> Vec3:
+    def _direction_ok(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
         n = math.sqrt(sum(c * c for c in v))
         if n < 1e-9:
             raise ValueError("must be a non-zero vector")
@@ -281,8 +349,8 @@ class RobotConfig(Frozen):
 
     name: Name
     model: Literal["pioneer3at", "pioneer3dx"]
-    start_xy: Vec2
-    start_yaw_deg: float = 0.0
+    start_xy: Point2
+    start_yaw_deg: AngleDeg = 0.0
 
     @property
     def start_yaw(self) -> float:
@@ -332,6 +400,17 @@ _DEFAULT_MARKER = MarkerAssembly()
 _ROWS3 = tuple(tuple(float(c) for c in row) for row in _DEFAULT_MARKER.cubes_body)
 _ROWS4 = tuple(tuple(float(c) for c in row) for row in _DEFAULT_MARKER.leds_body)
 
+MarkerOffset = Annotated[float, Field(ge=-1.0, le=1.0)]
+"""A horizontal coordinate of a point of the marker assembly in the child's body frame, m:
+the assembly rides on a Pioneer 3-DX (0.44 m x 0.38 m), so within 1 m of its centre."""
+
+MarkerHeight = Annotated[float, Field(ge=0.25, le=2.5)]
+"""The height of a point of the marker assembly above the floor, m: above the robot's
+body (0.22 m high), and at most 2.5 m."""
+
+MarkerPoint = tuple[MarkerOffset, MarkerOffset, MarkerHeight]
+"""(x, y, z) of a point of the marker assembly in the child's body frame, m."""
+
 
 class MarkerConfig(Frozen):
     """Geometry of the marker assembly in the child's body frame (m); defaults from
@@ -342,23 +421,17 @@ class MarkerConfig(Frozen):
         leds: four LED centres, m.
     """
 
-    cubes: tuple[Vec3, Vec3, Vec3] = _ROWS3  # type: ignore[assignment]
-    leds: tuple[Vec3, Vec3, Vec3, Vec3] = _ROWS4  # type: ignore[assignment]
+    cubes: tuple[MarkerPoint, MarkerPoint, MarkerPoint] = _ROWS3  # type: ignore[assignment]
+    leds: tuple[MarkerPoint, MarkerPoint, MarkerPoint, MarkerPoint] = _ROWS4  # type: ignore[assignment]
 
     @field_validator("cubes")
     @classmethod
-    def _not_collinear(cls, v: tuple[Vec3, Vec3, Vec3]) -> tuple[Vec3, Vec3, Vec3]:
+    def _not_collinear(
+        cls, v: tuple[MarkerPoint, MarkerPoint, MarkerPoint]
+    ) -> tuple[MarkerPoint, MarkerPoint, MarkerPoint]:
         p = np.asarray(v, dtype=float)
         if np.linalg.norm(np.cross(p[1] - p[0], p[2] - p[0])) < 1e-4:
             raise ValueError("the three corner cubes must not be collinear")
-        return v
-
-    @field_validator("cubes", "leds")
-    @classmethod
-    def _above_floor(cls, v: tuple[Vec3, ...]) -> tuple[Vec3, ...]:
-        for row in v:
-            if not 0.25 <= row[2] <= 2.5:
-                raise ValueError("heights must lie between 0.25 m (above the body) and 2.5 m")
         return v
 
     @model_validator(mode="after")
@@ -392,10 +465,22 @@ class _SpecConfig(Frozen):
         return self
 
 
-def _model_from_dataclass(cls: type, name: str, doc: str) -> type[_SpecConfig]:
+def _model_from_dataclass(
+    cls: type,
+    name: str,
+    doc: str,
+    ranges: dict[str, typing.Any],
+    base: type[_SpecConfig] = _SpecConfig,
+) -> type[_SpecConfig]:
     """A frozen pydantic model called ``name`` (this module's attribute of that name, so
-    that scenarios pickle) with the fields, types and defaults of dataclass ``cls``."""
+    that scenarios pickle) with the fields, types and defaults of dataclass ``cls``, each
+    field constrained by its entry of ``ranges`` (a ``Field(...)``; every field needs one,
+    so that a field added to the dataclass gets a range too), on ``base`` (which may add
+    checks between the fields)."""
     hints = typing.get_type_hints(cls)
+    names = [f.name for f in dataclasses.fields(cls)]
+    if set(ranges) != set(names):
+        raise TypeError(f"ranges of {name} must name exactly the fields {names}")
     fields: dict[str, typing.Any] = {}
     for f in dataclasses.fields(cls):
         if f.default is not dataclasses.MISSING:
@@ -404,8 +489,8 @@ def _model_from_dataclass(cls: type, name: str, doc: str) -> type[_SpecConfig]:
             default = Field(default_factory=f.default_factory)
         else:
             default = ...
-        fields[f.name] = (hints[f.name], default)
-    model = create_model(name, __base__=_SpecConfig, __module__=__name__, **fields)
+        fields[f.name] = (Annotated[hints[f.name], ranges[f.name]], default)
+    model = create_model(name, __base__=base, __module__=__name__, **fields)
     model.__doc__ = doc
     model._spec_cls = cls
     return model
@@ -414,15 +499,72 @@ def _model_from_dataclass(cls: type, name: str, doc: str) -> type[_SpecConfig]:
 TotalStationConfig = _model_from_dataclass(
     TotalStationSpec,
     "TotalStationConfig",
-    "Total station noise (SI units); fields and defaults of TotalStationSpec.",
+    """Total station noise (SI units); fields and defaults of TotalStationSpec.
+
+    Ranges: the paper's instrument (Table I) has 2 mm + 2 ppm and 5 arc-seconds, and
+    builders' instruments are a few times worse; noise up to 5 cm, 100 ppm and 1e-3 rad
+    (206 arc-seconds), and resolutions up to 1 cm and 1e-3 rad, leave room for stress
+    tests (the campaign already fails at a tenth of them). ``range_min`` is 0.1 m to 100 m;
+    ``range_max`` at most 10 km, beyond the diagonal of the largest space (7.1 km; the
+    paper's instrument reaches 2.2 km). ``aim_cone`` is 0.01 rad (0.6 deg, a narrow
+    automatic aim) up to pi/2 rad.
+    """,
+    {
+        "distance_sigma_const": Field(ge=0.0, le=0.05),
+        "distance_sigma_ppm": Field(ge=0.0, le=100.0),
+        "angle_sigma": Field(ge=0.0, le=1e-3),
+        "distance_resolution": Field(ge=0.0, le=0.01),
+        "angle_resolution": Field(ge=0.0, le=1e-3),
+        "range_min": Field(ge=0.1, le=100.0),
+        "range_max": Field(gt=0.0, le=10_000.0),
+        "aim_cone": Field(ge=0.01, lt=0.5 * math.pi),
+    },
 )
+
+
+class _InclinometerChecks(_SpecConfig):
+    """Base of :data:`InclinometerConfig`: its noise must fit its working range."""
+
+    @model_validator(mode="after")
+    def _noise_within_working_range(self) -> typing.Self:
+        sigma, working_range = self.sigma, self.working_range  # fields of the model below
+        if sigma > 0.1 * working_range:
+            raise PydanticCustomError(
+                "noise_beyond_range",
+                f"sigma = {sigma:g} rad is more than a tenth of working_range = "
+                f"{working_range:g} rad: a level instrument would read out of its range",
+                {"expected": f"sigma at most {0.1 * working_range:g} rad"},
+            )
+        return self
+
+
 InclinometerConfig = _model_from_dataclass(
     InclinometerSpec,
     "InclinometerConfig",
-    "Inclination sensor noise (SI units); fields of InclinometerSpec.",
+    """Inclination sensor noise (SI units); fields of InclinometerSpec.
+
+    Ranges: ``sigma`` at most 1e-3 rad (the default is 1 arc-second) and at most a tenth of
+    ``working_range``, else a level instrument would read beyond its range;
+    ``working_range`` 1e-4 rad (21 arc-seconds) to 0.1 rad (5.7 deg; the default is 3
+    arc-minutes, floor patches tilt by at most 1 deg).
+    """,
+    {"sigma": Field(ge=0.0, le=1e-3), "working_range": Field(ge=1e-4, le=0.1)},
+    base=_InclinometerChecks,
 )
 OdometryConfig = _model_from_dataclass(
-    OdometrySpec, "OdometryConfig", "Wheel odometry drift; fields and defaults of OdometrySpec."
+    OdometrySpec,
+    "OdometryConfig",
+    """Wheel odometry drift; fields and defaults of OdometrySpec.
+
+    Ranges: each at most 0.1 (10 % relative errors of the wheel radius and the track; 0.1 m
+    and 0.1 rad per square-root metre travelled), twenty to a hundred times the defaults.
+    """,
+    {
+        "wheel_scale_sigma": Field(ge=0.0, le=0.1),
+        "track_sigma": Field(ge=0.0, le=0.1),
+        "distance_noise": Field(ge=0.0, le=0.1),
+        "heading_noise": Field(ge=0.0, le=0.1),
+    },
 )
 
 
@@ -464,20 +606,44 @@ class Noise(Frozen):
 
 
 # -- route and calibration plan --------------------------------------------------------------
+def polyline_length(points: tuple[Point2, ...]) -> float:
+    """Length of the polyline through ``points``, m."""
+    p = np.asarray(points, dtype=float)
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+
+
+Waypoints = Annotated[tuple[Point2, ...], Field(min_length=2, max_length=MAX_WAYPOINTS)]
+"""The (x, y) points of a polyline on the floor, m: from 2 to ``MAX_WAYPOINTS``."""
+
+
+def _path_not_too_long(points: tuple[Point2, ...]) -> tuple[Point2, ...]:
+    """``points`` if their polyline is at most ``LONGEST_PATH`` long; a named error else."""
+    length = polyline_length(points)
+    if length > LONGEST_PATH:
+        raise PydanticCustomError(
+            "path_too_long",
+            f"the path is {length:.0f} m long",
+            {"expected": f"a path at most {LONGEST_PATH:.0f} m long"},
+        )
+    return points
+
+
 class Route(Frozen):
     """The reference route of the group (the parent's path), a polyline on the floor.
 
     Attributes:
-        waypoints: (x, y) points, m, at least two.
+        waypoints: (x, y) points, m, at least two and at most ``MAX_WAYPOINTS``; the route
+            is at most ``LONGEST_PATH`` (10 km) long.
     """
 
-    waypoints: tuple[Vec2, ...] = Field(min_length=2)
+    waypoints: Waypoints
+
+    _not_too_long = field_validator("waypoints")(_path_not_too_long)
 
     @property
     def length(self) -> float:
         """Length of the polyline, m."""
-        p = np.asarray(self.waypoints, dtype=float)
-        return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+        return polyline_length(self.waypoints)
 
     @property
     def turns_deg(self) -> tuple[float, ...]:
@@ -499,21 +665,22 @@ class CalibrationVisit(Frozen):
     """
 
     camera: Name
-    station: Vec2
-    yaw_deg: float = 0.0
+    station: Point2
+    yaw_deg: AngleDeg = 0.0
 
 
 class Calibration(Frozen):
     """The calibration plan.
 
     Attributes:
-        visits: the visits in the order they are made (a camera may be visited again).
+        visits: the visits in the order they are made (a camera may be visited again), at
+            most ``MAX_VISITS``.
         min_visible_fraction: the least fraction of a camera's floor view that the total
             station must see from the visit's station (line of sight to the corner cubes,
             within range), for the station to be accepted.
     """
 
-    visits: tuple[CalibrationVisit, ...] = Field(min_length=1)
+    visits: tuple[CalibrationVisit, ...] = Field(min_length=1, max_length=MAX_VISITS)
     min_visible_fraction: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
 
 
@@ -550,20 +717,21 @@ class CampaignSettings(Frozen):
         led_sequence: LED switching sequence, ``binary`` (6 frames for 4 LEDs) or
             ``one_at_a_time`` (6 frames).
         lock_retries: further aims after a lost prism lock before a shot is given up.
-        pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2.
+        pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2: 0.5 um
+            (the smallest pixels made are about 0.56 um) to 0.1 mm.
         strategy: the campaign's decisions (visits, legs, data stops) by name:
             ``paper`` (the paper's; the default for now). ``twin run --strategy`` overrides
             it.
     """
 
-    reference_cameras: tuple[Name, ...] | None = None
+    reference_cameras: tuple[Name, ...] | None = Field(default=None, max_length=MAX_CAMERAS)
     reference_points: Annotated[int, Field(ge=8, le=1000)] = 70
     station_points: Annotated[int, Field(ge=8, le=1000)] = 70
     min_points: Annotated[int, Field(ge=8, le=1000)] = 24
     formation: FormationSettings = FormationSettings()
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
-    pixel_size_mm: Annotated[float, Field(gt=0.0, le=0.1)] = 0.015
+    pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
     strategy: Name = "paper"
 
 
@@ -576,12 +744,12 @@ class Faults(Frozen):
         hidden_led_rate: probability that an LED stays dark during one observation (as if
             something hid it from the camera).
         unreachable: (x, y) goals, m, that no robot can reach: a drive to within 0.5 m of
-            one stops short, blocked.
+            one stops short, blocked (at most ``MAX_WAYPOINTS``).
     """
 
     lost_lock_rate: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     hidden_led_rate: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
-    unreachable: tuple[Vec2, ...] = ()
+    unreachable: tuple[Point2, ...] = Field(default=(), max_length=MAX_WAYPOINTS)
 
 
 class Person(Frozen):
@@ -590,18 +758,20 @@ class Person(Frozen):
 
     Attributes:
         name: identifier (the MuJoCo body name; geoms ``NAME/legs``, ``NAME/torso``...).
-        waypoints: (x, y) points of the path on the floor, m, at least two; the person
-            walks to the last one and back, forever.
-        speed: walking speed, m/s.
-        start_offset: distance along the path at time 0, m.
+        waypoints: (x, y) points of the path on the floor, m, at least two and at most
+            ``MAX_WAYPOINTS``; the person walks to the last one and back, forever. The path
+            is 0.1 m to ``LONGEST_PATH`` long.
+        speed: walking speed, m/s, from a shuffle (0.1) to a run (3).
+        start_offset: distance along the path at time 0, m; at most twice the longest path
+            (beyond that the person would only have walked there and back more often).
         height: m.
         shirt_rgb: colour of the shirt, each channel 0..1.
     """
 
     name: Name
-    waypoints: tuple[Vec2, ...] = Field(min_length=2)
-    speed: Annotated[float, Field(gt=0.0, le=3.0)] = 1.2
-    start_offset: Annotated[float, Field(ge=0.0)] = 0.0
+    waypoints: Waypoints
+    speed: Annotated[float, Field(ge=0.1, le=3.0)] = 1.2
+    start_offset: Annotated[float, Field(ge=0.0, le=2.0 * LONGEST_PATH)] = 0.0
     height: Annotated[float, Field(ge=1.0, le=2.2)] = 1.75
     shirt_rgb: tuple[
         Annotated[float, Field(ge=0.0, le=1.0)],
@@ -609,11 +779,12 @@ class Person(Frozen):
         Annotated[float, Field(ge=0.0, le=1.0)],
     ] = (0.85, 0.85, 0.80)
 
+    _not_too_long = field_validator("waypoints")(_path_not_too_long)
+
     @property
     def path_length(self) -> float:
         """Length of the path, m."""
-        p = np.asarray(self.waypoints, dtype=float)
-        return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+        return polyline_length(self.waypoints)
 
     @model_validator(mode="after")
     def _path_has_length(self) -> Person:
@@ -638,9 +809,12 @@ class Scenario(Frozen):
     Attributes:
         name: identifier.
         description: free text.
-        seed: root seed of every random generator of a run.
-        space, cameras, robots, marker, noise, route, calibration, sim: the sections.
-        people: people walking through the space (distractors), none by default.
+        seed: root seed of every random generator of a run, 0 to 2**63 - 1 (see
+            ``twin.scenario.limits.MAX_SEED``).
+        space, cameras, robots, marker, noise, route, calibration, sim: the sections; at
+            most ``MAX_CAMERAS`` cameras.
+        people: people walking through the space (distractors), none by default, at most
+            ``MAX_PEOPLE``.
         campaign: how the calibration campaign runs.
         faults: faults injected into the simulated devices (none by default).
         source: the file it was loaded from (set by the loader).
@@ -648,16 +822,16 @@ class Scenario(Frozen):
 
     name: Name
     description: str = ""
-    seed: Annotated[int, Field(ge=0)]
+    seed: Seed
     space: Space
-    cameras: tuple[CameraConfig, ...] = Field(min_length=1)
+    cameras: tuple[CameraConfig, ...] = Field(min_length=1, max_length=MAX_CAMERAS)
     robots: Robots
     marker: MarkerConfig = MarkerConfig()
     noise: Noise = Noise()
     route: Route
     calibration: Calibration
     sim: SimConfig = SimConfig()
-    people: tuple[Person, ...] = ()
+    people: tuple[Person, ...] = Field(default=(), max_length=MAX_PEOPLE)
     campaign: CampaignSettings = CampaignSettings()
     faults: Faults = Faults()
     source: str = ""

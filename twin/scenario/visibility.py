@@ -8,7 +8,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from calib.camera import TsaiCamera
-from twin.scenario.geometry import floor_view, inside_obstacle, inside_space, segment_blocked
+from twin.scenario.geometry import (
+    floor_view,
+    inside_obstacle,
+    inside_space,
+    obstacles_near,
+    segment_blocked,
+)
 from twin.scenario.robots import PIONEER3DX
 from twin.scenario.schema import Space
 
@@ -43,16 +49,20 @@ def station_visibility(
     floor = floor_view(camera, space.floor_z, max_range=60.0)
     if len(floor) == 0:
         return 0.0
+    station = np.asarray(station_xy, dtype=float).reshape(2)
+    # Only obstacles near the view and the station can hide the one from the other.
+    near = obstacles_near(space.obstacles, np.vstack([floor[:, :2], station]), CHILD_CLEARANCE)
     ok = inside_space(space, floor[:, :2], CHILD_CLEARANCE)
-    for ob in space.obstacles:
+    for ob in near:
         ok &= ~inside_obstacle(ob, floor[:, :2], CHILD_CLEARANCE)
     floor = floor[ok]
     if len(floor) == 0:
         return 0.0
     targets = floor + np.array([0.0, 0.0, prism_height])
-    station = np.asarray(station_xy, dtype=float).reshape(2)
     inst = np.array([station[0], station[1], instrument_z])
     dist = np.linalg.norm(targets - inst, axis=1)
     in_range = (dist >= instrument_range[0]) & (dist <= instrument_range[1])
-    clear = ~segment_blocked(space, np.broadcast_to(inst, targets.shape), targets)
+    if not near:
+        return float(np.mean(in_range))
+    clear = ~segment_blocked(space, np.broadcast_to(inst, targets.shape), targets, near)
     return float(np.mean(in_range & clear))

@@ -1,5 +1,6 @@
 """Plan geometry: the segment test for many segments and obstacles at once gives what it
-gives for each segment and each obstacle alone."""
+gives for each segment and each obstacle alone, and obstacles far from the segments are
+rightly left out of it."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from twin.scenario import load_scenario
-from twin.scenario.geometry import segment_blocked
+from twin.scenario.geometry import inside_obstacle, obstacles_near, segment_blocked
 
 HALL = Path(__file__).resolve().parents[3] / "scenarios" / "paper_hall.toml"
 
@@ -67,3 +68,22 @@ def test_a_margin_keeps_segments_off_a_boxs_sides_and_top(space):
         assert not segment_blocked(space, a, b)[0]
         assert not segment_blocked(space, a, b, margin=0.04)[0]
         assert segment_blocked(space, a, b, margin=0.06)[0]
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    segments=st.lists(st.tuples(point, point), min_size=1, max_size=20),
+    margin=st.floats(0.0, 0.5),
+)
+def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin):
+    a = np.array([s[0] for s in segments])
+    b = np.array([s[1] for s in segments])
+    near = obstacles_near(space.obstacles, np.vstack([a, b])[:, :2], margin)
+    every = segment_blocked(space, a, b, margin=margin)
+    if near:
+        np.testing.assert_array_equal(segment_blocked(space, a, b, near, margin), every)
+    else:
+        assert not every.any()
+    for ob in space.obstacles:
+        if ob not in near:
+            assert not inside_obstacle(ob, np.vstack([a, b])[:, :2], margin).any()
