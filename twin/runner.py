@@ -35,6 +35,7 @@ from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.scenario import Scenario, load_scenario
+from twin.scenario.limits import check_seed
 from twin.scenario.schema import Noise
 from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
 from twin.sim.world import build_world
@@ -81,14 +82,15 @@ def run_scenario(
         The results (also in ``results.json``).
 
     Raises:
-        ValueError: an unknown fidelity or strategy (nothing is written).
+        ValueError: an unknown fidelity or strategy, a seed out of range (nothing is
+            written).
         twin.outputs.OutputError: ``out_dir`` cannot be used (nothing is written).
     """
     if fidelity not in FIDELITIES:
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if seed is not None:
-        sc = sc.model_copy(update={"seed": int(seed)})
+        sc = sc.model_copy(update={"seed": check_seed(seed)})
     if not noise:
         sc = sc.without_noise()
     chosen = strategy_for(sc, strategy)

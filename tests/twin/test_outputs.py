@@ -125,3 +125,13 @@ def test_a_run_folder_holds_one_run(tmp_path):
     assert not (out / "report.md").exists()
     assert not (out / "figures").exists()
     assert read_manifest(out)["arguments"]["seed"] == 2
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, 1.5])
+def test_a_run_refuses_a_seed_out_of_range_before_writing(tmp_path, seed):
+    from twin.runner import run_scenario
+
+    smoke = Path(__file__).resolve().parents[2] / "scenarios" / "smoke.toml"
+    with pytest.raises(ValueError, match=r"a seed must be a whole number from 0 to 2\^63 - 1"):
+        run_scenario(smoke, tmp_path / "run", fidelity="geometric", seed=seed)
+    assert not (tmp_path / "run").exists()

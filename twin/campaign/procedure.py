@@ -55,6 +55,7 @@ from twin.campaign.travel import CampaignAborted, Travel
 from twin.hal.conformance import check_rig_structure
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
+from twin.instruments.errors import TiltOutOfRangeError
 from twin.instruments.total_station import TotalStationSpec
 from twin.localization.pose import ParentPose
 from twin.localization.sequence import CpsSequence
@@ -189,7 +190,15 @@ class Campaign:
         Whoever answers starts its strategy first (:meth:`Strategy.start
         <twin.campaign.strategy.Strategy.start>` with :attr:`view`), as :meth:`run` does.
         """
-        self.rig.total_station.read_inclination()
+        try:
+            self.rig.total_station.read_inclination()
+        except TiltOutOfRangeError as exc:
+            # The first station defines W level: on a slope beyond the sensor's range the
+            # instrument cannot level a single shot.
+            self.journal.failure(exc.reason.value, str(exc), self.rig.parent.name)
+            self.journal.failure("campaign_aborted", "the first station leans too far")
+            self.journal.stage("done")
+            return self.outcome
         self.journal.parent_fix(self.cps.parent)
         self.journal.stage("reference")
         cameras = yield ReferenceCameras()

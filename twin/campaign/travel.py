@@ -23,7 +23,7 @@ from twin.campaign.shooting import measure_child, moved_between, oriented_on, sa
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
 from twin.hal.rig import Rig
-from twin.instruments.errors import InconsistentChildrenError
+from twin.instruments.errors import InconsistentChildrenError, TiltOutOfRangeError
 from twin.instruments.marker import MarkerAssembly
 from twin.localization.observation import ChildObservation
 from twin.localization.pose import ParentPose
@@ -223,7 +223,11 @@ class Travel:
                 continue
             odo = parent.odometry()
             guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
-            self.rig.total_station.read_inclination()
+            try:
+                self.rig.total_station.read_inclination()
+            except TiltOutOfRangeError as exc:  # it stands on a slope: perhaps not aside
+                self.journal.failure(exc.reason.value, str(exc), parent.name, attempt=attempt)
+                continue
             # A retry starts from the other child: the first one measured orients the aim
             # at the next, and a wrong first one must not spoil every attempt.
             order = self.children if attempt % 2 == 0 else self.children[::-1]

@@ -6,9 +6,10 @@ from __future__ import annotations
 import argparse
 import math
 
-SEED_MAX = 2**63 - 1
-"""The largest seed accepted: any non-negative integer up to this is a valid root of
-numpy's SeedSequence, and survives JSON, CSV and MCAP as an exact integer."""
+from twin.scenario.limits import MAX_SEED
+
+SEED_MAX = MAX_SEED
+"""The largest seed accepted: the scenario's own limit (:data:`twin.scenario.limits.MAX_SEED`)."""
 
 
 def seed(text: str) -> int:

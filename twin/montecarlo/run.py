@@ -25,6 +25,7 @@ from twin.montecarlo.trial import TrialSpec, run_trial
 from twin.outputs import claim_folder, write_text_atomic
 from twin.report.reading import planned_visits
 from twin.scenario import Scenario
+from twin.scenario.limits import check_seed
 
 TABLE = "trials.csv"
 SETTINGS = "montecarlo.json"
@@ -123,7 +124,7 @@ def run_montecarlo(
         raise ValueError(f"trials must be at least 1, got {trials}")
     if fidelity not in ("geometric", "render"):
         raise ValueError(f"fidelity must be geometric or render, got {fidelity!r}")
-    seed = scenario.seed if master_seed is None else int(master_seed)
+    seed = scenario.seed if master_seed is None else check_seed(master_seed)
     strategy_name = strategy_named_in(scenario, strategy)
     configs = configurations(budget)
     settings = _settings(scenario, fidelity, strategy_name, seed, configs)

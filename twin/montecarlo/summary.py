@@ -141,7 +141,8 @@ def parent_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> dict[st
         out["rms_3d"] = {
             "mc_mm": mc_rms,
             "predicted_mm": p_rms,
-            "mc_over_predicted": mc_rms / p_rms,
+            # A parent that never moved has no predicted spread: no ratio.
+            "mc_over_predicted": mc_rms / p_rms if p_rms > 0 else None,
         }
     return out
 

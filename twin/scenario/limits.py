@@ -89,3 +89,14 @@ refuse, and one that no 64-bit integer column could store."""
 
 Seed = Annotated[int, Field(ge=0, le=MAX_SEED)]
 """A seed of the run's random generators."""
+
+
+def check_seed(seed: int) -> int:
+    """``seed`` as an int if it is a whole number from 0 to :data:`MAX_SEED`.
+
+    Raises:
+        ValueError: naming the seed and the range.
+    """
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) <= MAX_SEED:
+        raise ValueError(f"a seed must be a whole number from 0 to 2^63 - 1, got {seed!r}")
+    return int(seed)

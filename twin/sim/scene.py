@@ -20,6 +20,9 @@ from twin.sim.hall import build_space
 from twin.sim.people import add_person
 from twin.sim.robots import attach_robot
 
+NEAR_CLIP = 0.1
+"""Distance of the cameras' near clipping plane, m: nothing a camera must see is nearer."""
+
 NOSLIP_ITERATIONS = 2
 """Iterations of MuJoCo's no-slip solver: without it soft contacts let a parked robot slide
 under a sustained sideways load (a wheel resting on the edge of a floor patch)."""
@@ -44,9 +47,12 @@ def build_spec(
     max_h = max(c.image_size[1] for c in scenario.cameras)
     spec.visual.global_.offwidth = max(640, max_w)
     spec.visual.global_.offheight = max(480, max_h)
-    spec.visual.map.znear = 0.01
+    # MuJoCo's clipping planes are relative to the model's extent: the near one is held at
+    # NEAR_CLIP m whatever the space's size (a 500 m site would clip 5 m at 1 %).
+    extent = float(max(scenario.space.size))
+    spec.stat.extent = extent
+    spec.visual.map.znear = NEAR_CLIP / extent
     spec.visual.map.zfar = 200.0
-    spec.stat.extent = float(max(scenario.space.size))
     build_space(spec, scenario.space)
     marker = scenario.marker.assembly()
     for robot in scenario.robots.all:

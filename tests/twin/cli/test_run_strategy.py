@@ -66,3 +66,22 @@ def test_a_monte_carlo_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys
     assert main(args) == 1
     assert "no trial calibrated any camera" in " ".join(capsys.readouterr().out.split())
     assert (out / "summary.json").exists()
+
+
+def test_a_first_station_on_a_slope_ends_the_run_with_its_reason(tmp_path):
+    # A floor patch tilted 30' (the inclinometer reads +-3') under the parent's start.
+    text = SMOKE.read_text().replace(
+        "[[space.floor_patches]]",
+        '[[space.floor_patches]]\nname = "slope"\ncenter = [0.0, 0.0]\nsize = [1.2, 1.2]\n'
+        "tilt_arcmin = [0.0, 30.0]\n\n[[space.floor_patches]]",
+        1,
+    )
+    scenario = tmp_path / "slope.toml"
+    scenario.write_text(text)
+    out = tmp_path / "run"
+    args = ["run", str(scenario), "--fidelity", "geometric", "--no-report", "--out", str(out)]
+    assert main(args) == 1
+    results = json.loads((out / "results.json").read_text())
+    assert results["calibrations"] == []
+    assert results["failures"]["tilt_out_of_range"] == 1
+    assert results["failures"]["campaign_aborted"] == 1

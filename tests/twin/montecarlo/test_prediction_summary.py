@@ -94,3 +94,21 @@ def test_parent_summary_takes_one_row_per_trial():
     assert s["trials"] == 2
     assert s["x"]["mc_std_mm"] == pytest.approx(math.sqrt(2.0))
     assert s["x"]["predicted_std_mm"] == pytest.approx(2.0)
+
+
+def test_a_parent_that_never_moved_has_no_ratio_to_its_prediction():
+    # Its predicted spread is 0: the ratio is left out, not a division by zero.
+    from twin.montecarlo.summary import parent_summary
+
+    trials = [
+        {
+            "config": "all",
+            "trial": t,
+            **{f"parent_final_d{a}_mm": 0.0 for a in "xyz"},
+            **{f"parent_predicted_s{a}_mm": 0.0 for a in "xyz"},
+            "parent_distance_m": 0.0,
+        }
+        for t in range(3)
+    ]
+    out = parent_summary(trials)
+    assert out["rms_3d"]["mc_over_predicted"] is None
