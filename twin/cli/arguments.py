@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any
 
 from twin.scenario.limits import MAX_SEED
 
@@ -12,12 +13,16 @@ SEED_MAX = MAX_SEED
 """The largest seed accepted: the scenario's own limit (:data:`twin.scenario.limits.MAX_SEED`)."""
 
 
+def _convert(text: str, kind: type, expected: str) -> Any:
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+
+
 def seed(text: str) -> int:
     """A random seed: an integer from 0 to :data:`SEED_MAX`."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = _convert(text, int, "a whole number")
     if not 0 <= value <= SEED_MAX:
         raise argparse.ArgumentTypeError(f"expected 0 to 2^63 - 1, got {value}")
     return value
@@ -25,10 +30,7 @@ def seed(text: str) -> int:
 
 def positive_int(text: str) -> int:
     """A whole number of at least 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = _convert(text, int, "a whole number")
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
@@ -36,10 +38,7 @@ def positive_int(text: str) -> int:
 
 def positive_float(text: str) -> float:
     """A finite number above 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    value = _convert(text, float, "a number")
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a finite number above 0, got {text}")
     return value
@@ -47,13 +46,32 @@ def positive_float(text: str) -> float:
 
 def finite_float(text: str) -> float:
     """A finite number."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    value = _convert(text, float, "a number")
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text}")
     return value
+
+
+def add_strategy(parser: argparse.ArgumentParser) -> None:
+    """The ``--strategy`` option of the commands that run campaigns."""
+    from twin.campaign.strategies import STRATEGIES
+
+    parser.add_argument(
+        "--strategy",
+        choices=sorted(STRATEGIES),
+        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
+        "(default: the scenario's campaign.strategy, itself paper by default)",
+    )
+
+
+def add_overwrite(parser: argparse.ArgumentParser | argparse._MutuallyExclusiveGroup) -> None:
+    """The ``--overwrite`` option of the commands that write a folder of results."""
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
+        "not empty)",
+    )
 
 
 def recorded(args: argparse.Namespace) -> dict[str, object]:

@@ -112,12 +112,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write detections and overlay here, an empty or new folder (default: print only)",
     )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
-        "not empty)",
-    )
+    arguments.add_overwrite(p)
     p.set_defaults(func=run)
 
 

@@ -15,7 +15,6 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from twin.campaign.strategies import STRATEGIES
 from twin.cli import arguments
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED
@@ -70,12 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--seed", type=arguments.seed, help="master seed, 0 to 2^63 - 1 (default: the scenario's)"
     )
-    p.add_argument(
-        "--strategy",
-        choices=sorted(STRATEGIES),
-        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
-        "(default: the scenario's campaign.strategy, itself paper by default)",
-    )
+    arguments.add_strategy(p)
     p.add_argument(
         "--no-budget",
         action="store_true",
@@ -91,12 +85,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="continue the Monte-Carlo run in --out (default: start one)",
     )
-    again.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
-        "not empty)",
-    )
+    arguments.add_overwrite(again)
     p.set_defaults(func=run)
 
 

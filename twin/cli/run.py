@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.live import Live
 from rich.table import Table
 
-from twin.campaign.strategies import STRATEGIES, strategy_for
+from twin.campaign.strategies import strategy_for
 from twin.cli import arguments
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED
@@ -43,23 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=arguments.seed,
         help="root seed of the run, 0 to 2^63 - 1 (default: the scenario's)",
     )
-    p.add_argument(
-        "--strategy",
-        choices=sorted(STRATEGIES),
-        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
-        "(default: the scenario's campaign.strategy, itself paper by default)",
-    )
+    arguments.add_strategy(p)
     p.add_argument(
         "--out",
         type=Path,
         help="output folder, empty or new (default: out/SCENARIO-FIDELITY)",
     )
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
-        "not empty)",
-    )
+    arguments.add_overwrite(p)
     p.add_argument(
         "--no-noise", action="store_true", help="switch every noise source off (default: on)"
     )
