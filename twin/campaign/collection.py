@@ -115,7 +115,9 @@ class DataCollection:
             return None
         assert obs.marker_pose is not None
         parent = self.travel.cps.parent
-        leds_level, _ = led_positions(obs.marker_pose, self.travel.marker)
+        leds_level, cov_level = led_positions(obs.marker_pose, self.travel.marker)
+        # Levelled frame to W turns about z: each LED's 3 x 3 block turns with it.
+        turn = np.kron(np.eye(len(leds_level)), parent.rotation)
         return DataPoint(
             self.rig.clock.now(),
             dataset,
@@ -125,6 +127,7 @@ class DataCollection:
             parent.level2world(leds_level),
             seen.pixels,
             parent.level2world(obs.point_level)[:2],
+            turn @ cov_level @ turn.T,
         )
 
     def calibrate(self, camera: str, visit: int, station: NDArray[np.float64], plan: StopPlan):

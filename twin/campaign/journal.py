@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from twin.campaign.records import (
     CALIBRATION,
+    CHILD_PLACED,
     DATASET,
     EVENT,
     FAILURE,
@@ -28,6 +29,7 @@ from twin.campaign.records import (
     STAGE,
     CalibrationRecord,
     CampaignEvent,
+    ChildPlaced,
     DataPoint,
     DataSet,
     Failure,
@@ -127,8 +129,9 @@ class Journal:
         """The parent's travel from fix to fix so far, m."""
         return self._distance
 
-    def parent_fix(self, pose: ParentPose) -> None:
-        """The parent's pose after a CPS step (or at its first station)."""
+    def parent_fix(self, pose: ParentPose, children: tuple[str, ...] = ()) -> None:
+        """The parent's pose after a CPS step (from ``children``), or at its first
+        station."""
         if self._fixes == 0:
             self._distance = 0.0
         else:
@@ -143,9 +146,22 @@ class Journal:
                 pose.translation,
                 pose.covariance,
                 self._distance,
+                tuple(children),
             ),
         )
         self._fixes += 1
+
+    def child_placed(
+        self,
+        child: str,
+        point_level: NDArray[np.float64],
+        covariance: NDArray[np.float64],
+        world: NDArray[np.float64],
+    ) -> None:
+        """A child was placed in the CPS state from the standing parent's measurement."""
+        self._record(
+            CHILD_PLACED, ChildPlaced(self.clock.now(), child, point_level, covariance, world)
+        )
 
     def point(self, point: DataPoint) -> None:
         """A data point of a camera."""

@@ -17,6 +17,7 @@ FAILURE = "/campaign/failure"
 EVENT = "/campaign/event"
 SKIPPED = "/campaign/skipped_visit"
 DATASET = "/campaign/dataset"
+CHILD_PLACED = "/campaign/child_placed"
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ class ParentFix:
         timestamp: s. index: station number (0 = the first, which defines W).
         yaw: rad. translation: (3,) instrument centre in W, m. covariance: (4, 4) of
             (yaw, x, y, z). distance_travelled: the parent's travel so far, m.
+        children: the children the fix was solved from, in the order measured (none at
+            the first station).
     """
 
     timestamp: float
@@ -52,6 +55,26 @@ class ParentFix:
     translation: NDArray[np.float64]
     covariance: NDArray[np.float64]
     distance_travelled: float
+    children: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ChildPlaced:
+    """A child measured from the standing parent and placed in the CPS state (it moved, or
+    it was found moved).
+
+    Attributes:
+        timestamp: s. child: name.
+        point_level: (3,) its reference point in the parent's levelled frame, m.
+        covariance: (3, 3) of ``point_level``, m^2.
+        world: (3,) its reference point in W, from the parent's estimate, m.
+    """
+
+    timestamp: float
+    child: str
+    point_level: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    world: NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -64,6 +87,9 @@ class DataPoint:
         leds_world: (N_led, 3) LED positions in W from the total station and CPS, m.
         pixels: (N_led, 2) where the camera found them, px.
         child_xy: (2,) the child's reference point in W, m.
+        leds_covariance: (3 N_led, 3 N_led) joint covariance of ``leds_world`` from the
+            measured marker pose (shared by the LEDs of one stop), without the parent's
+            pose error (common to a whole station), m^2; empty when unknown.
     """
 
     timestamp: float
@@ -74,6 +100,7 @@ class DataPoint:
     leds_world: NDArray[np.float64]
     pixels: NDArray[np.float64]
     child_xy: NDArray[np.float64]
+    leds_covariance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 @dataclass(frozen=True)

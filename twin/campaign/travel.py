@@ -169,6 +169,8 @@ class Travel:
         """Place a child measured from the standing parent in the CPS state."""
         with timed(self.rig.timings, "solving"):
             self.cps.children_moved([obs])
+        world, _ = self.cps.child_position(child)
+        self.journal.child_placed(child, obs.point_level, obs.covariance, world)
         self._correct_child_pose(child, obs, self.cps.parent)
         self.placed[child] = obs
 
@@ -252,7 +254,7 @@ class Travel:
                 continue
             pose = self.cps.parent
             parent.set_pose(float(pose.translation[0]), float(pose.translation[1]), pose.yaw)
-            self.journal.parent_fix(pose)
+            self.journal.parent_fix(pose, tuple(o.child for o in obs))
             return
         raise CampaignAborted("the parent could not fix its pose from the children")
 
