@@ -1,0 +1,470 @@
+"""The batch fidelity: a campaign's plan (:mod:`twin.batch.plan`) executed for T trials at
+once, every measurement and every estimate an array over the trials.
+
+Each trial has its own noise, drawn from its own seed in a fixed order (so that a trial
+gives the same result alone or in any batch), and the noise sources of the geometric
+fidelity:
+
+- the robots' stopping error: each drive ends at the goal, moved by the base's error of
+  localisation (where it truly stood against where it believed it stood) and by the
+  scenario's stopping error;
+- the marker assemblies' surveying error (each child's own, for the whole trial);
+- the total station's distance and angle noise in its (tilted) frame, each shot levelled
+  with its own noisy inclination reading, and rounded to the output resolution;
+- the LED detection noise of the geometric fidelity (``noise.led_detection_px``).
+
+The estimators are the campaign's (:mod:`twin.batch.estimators`): marker fits and centroids,
+CPS with its joint covariance and consistency tests, LED positions from the marker's pose,
+Tsai's calibration of every visit and the Table III metrics.
+
+What the batch leaves out, which the geometric fidelity keeps: decisions taken again under
+noise (a re-aim after a lost lock or a wrong prism, a stop given up because an LED fell out
+of view, a fix measured again after a failed consistency test: a trial that fails a test
+keeps its estimate and counts a failure), the faults of ``[faults]``, the check shots at a
+child placed earlier (which only matter when it moved), the tilt of a child on a tilted
+floor patch (its marker is moved in the plane), and occlusions by the robots' own noise.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera import TsaiCamera
+from twin.batch.estimators import (
+    Calibrations,
+    CpsStates,
+    Estimators,
+    Observations,
+    ParentEstimates,
+    TrialByTrial,
+)
+from twin.batch.plan import (
+    BatchPlan,
+    Calibrate,
+    DataSetDone,
+    Drive,
+    Fix,
+    Place,
+    Point,
+    RobotTruth,
+)
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.noise import normalise_polar, polar_sigmas, quantise_polar
+from twin.instruments.polar import cartesian2polar, polar2cartesian
+from twin.instruments.tilt import level_points, tilt_from_orientation
+from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.scenario.schema import Noise
+
+BATCH_STREAM = 11
+"""Spawn key of a trial's stream of the batch fidelity's noise."""
+
+FALSE_ALARM_RATE = 1e-4
+"""The consistency tests' false-alarm rate, as the campaign's with a noisy instrument."""
+
+
+class Draws:
+    """Each trial's standard normal draws, handed out in a fixed order.
+
+    Args:
+        seeds: (T,) the trials' root seeds.
+        count: draws each trial needs.
+    """
+
+    def __init__(self, seeds: Sequence[int], count: int) -> None:
+        self.values = np.stack(
+            [
+                np.random.default_rng(
+                    np.random.SeedSequence(int(seed), spawn_key=(BATCH_STREAM,))
+                ).standard_normal(count)
+                for seed in seeds
+            ]
+        )
+        self.used = 0
+
+    def take(self, *shape: int) -> NDArray[np.float64]:
+        """(T, *shape) the next draws of every trial."""
+        n = math.prod(shape)
+        if self.used + n > self.values.shape[1]:
+            raise RuntimeError("the batch drew more noise than it counted: a bug")
+        out = self.values[:, self.used : self.used + n].reshape(len(self.values), *shape)
+        self.used += n
+        return out
+
+
+def draws_needed(plan: BatchPlan, n_leds: int) -> int:
+    """How many normal draws one trial of ``plan`` takes."""
+    per_shot = 3 + 2  # polar noise, inclination reading
+    marker = len(plan.children) * (3 + n_leds) * 3
+    count = marker
+    for step in plan.steps:
+        if isinstance(step, Drive):
+            count += 3
+        elif isinstance(step, Place):
+            count += 3 * per_shot
+        elif isinstance(step, Fix):
+            count += 3 * per_shot * len(step.children)
+        elif isinstance(step, Point):
+            count += 2 * n_leds
+    return count
+
+
+def _compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T, 3) planar poses a (x) b: b expressed in the frame of a."""
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.column_stack(
+        [
+            a[:, 0] + c * b[:, 0] - s * b[:, 1],
+            a[:, 1] + s * b[:, 0] + c * b[:, 1],
+            a[:, 2] + b[:, 2],
+        ]
+    )
+
+
+def _inverse(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T, 3) inverse planar poses."""
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.column_stack([-(c * a[:, 0] + s * a[:, 1]), s * a[:, 0] - c * a[:, 1], -a[:, 2]])
+
+
+def _rot_z(yaw: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T, 3, 3) rotations about z."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.zeros((len(yaw), 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1] = c, -s, s, c
+    out[:, 2, 2] = 1.0
+    return out
+
+
+@dataclass
+class _Robot:
+    """A robot in T trials: where it truly stands and where it believes it stands (planar,
+    (T, 3)), and where it stood in the noise-free plan."""
+
+    true: NDArray[np.float64]
+    believed: NDArray[np.float64]
+    nominal: RobotTruth
+
+    def moved(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(..., 3) points of the nominal stop (W) moved with each trial's true pose:
+        (T, ..., 3). The robot's turn is about the vertical through its origin."""
+        delta = self.true[:, 2] - self.nominal.pose[2]
+        r = _rot_z(delta)
+        rel = points - np.array([*self.nominal.pose[:2], 0.0])
+        flat = rel.reshape(-1, 3)
+        out = np.einsum("tij,kj->tki", r, flat).reshape(len(delta), *points.shape)
+        out[..., 0] += self.true[:, 0].reshape((-1,) + (1,) * (points.ndim - 1))
+        out[..., 1] += self.true[:, 1].reshape((-1,) + (1,) * (points.ndim - 1))
+        return out
+
+
+@dataclass
+class BatchOutcome:
+    """What T trials of a plan gave.
+
+    Attributes:
+        calibrations: (camera, visit) -> the visit's calibrations, with its errors (see
+            :class:`VisitOutcome`).
+        parent_error: (T, 3) the parent's final estimate minus its truth, m.
+        parent_covariance: (T, 3, 3) its predicted covariance, m^2.
+        distance: (T,) the parent's travel by its own estimates, m.
+        failures: (T,) consistency tests failed (the geometric fidelity would measure again).
+    """
+
+    calibrations: dict[tuple[str, int], VisitOutcome]
+    parent_error: NDArray[np.float64]
+    parent_covariance: NDArray[np.float64]
+    distance: NDArray[np.float64]
+    failures: NDArray[np.int64]
+
+
+@dataclass
+class VisitOutcome:
+    """A visit's calibration in T trials: (T,) arrays unless said.
+
+    Attributes:
+        points: LED points used. distance: the parent's travel at the calibration, m.
+        position_error: m. rotation_error: rad (NaN where not calibrated).
+        world_pixel, world_3d: Table III against the reference set (px, m), NaN without one.
+        local_pixel, local_3d: Table III against the visit's own data (px, m).
+        predicted_transfer, predicted_calibration: the analytic prediction's RMS 3D
+            position error from the parent's pose and from the calibration itself, m.
+        calibrated: whether each trial's calibration succeeded.
+    """
+
+    points: int
+    distance: NDArray[np.float64]
+    position_error: NDArray[np.float64]
+    rotation_error: NDArray[np.float64]
+    world_pixel: NDArray[np.float64]
+    world_3d: NDArray[np.float64]
+    local_pixel: NDArray[np.float64]
+    local_3d: NDArray[np.float64]
+    predicted_transfer: NDArray[np.float64]
+    predicted_calibration: NDArray[np.float64]
+    calibrated: NDArray[np.bool_]
+
+
+@dataclass
+class _DataSet:
+    points: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 3) each
+    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 2) each
+    size: int | None = None
+
+    def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(T, n, 3) points and (T, n, 2) pixels, the first n LED points in order."""
+        if not self.points:
+            return np.zeros((0, 0, 3)), np.zeros((0, 0, 2))
+        pts = np.concatenate(self.points, axis=1)
+        pix = np.concatenate(self.pixels, axis=1)
+        n = pts.shape[1] if n is None else n
+        return pts[:, :n], pix[:, :n]
+
+
+class BatchRun:
+    """T trials of a plan, executed step by step (:meth:`step`, or :meth:`run` for all).
+
+    Args:
+        plan: the campaign's plan.
+        seeds: (T,) each trial's root seed.
+        noise: the noise the trials simulate (an error budget's one source: see
+            :func:`twin.montecarlo.sources.isolate`); default the plan's scenario's.
+        estimators: the estimators (default: the campaign's own, trial by trial).
+    """
+
+    def __init__(
+        self,
+        plan: BatchPlan,
+        seeds: Sequence[int],
+        noise: Noise | None = None,
+        estimators: Estimators | None = None,
+    ) -> None:
+        if estimators is None:
+            estimators = TrialByTrial()
+        sc = plan.scenario
+        self.plan = plan
+        self.trials = len(seeds)
+        self.noise = noise if noise is not None else sc.noise
+        self.spec: TotalStationSpec = self.noise.total_station.spec()
+        self.inclinometer: InclinometerSpec = self.noise.inclinometer.spec()
+        # The instrument advertises the scenario's full noise: the estimators weigh by it.
+        self.advertised: TotalStationSpec = sc.noise.total_station.spec()
+        self.advertised_tilt: InclinometerSpec = sc.noise.inclinometer.spec()
+        self.estimators = estimators
+        self.marker: MarkerAssembly = sc.marker.assembly()
+        n_leds = len(self.marker.leds_body)
+        self.draws = Draws(seeds, draws_needed(plan, n_leds))
+        t = self.trials
+        self.robots = {
+            name: _Robot(
+                np.repeat(truth.pose[None], t, axis=0),
+                np.repeat(truth.pose[None], t, axis=0),
+                truth,
+            )
+            for name, truth in plan.start.items()
+        }
+        sigma = self.noise.marker_geometry_m
+        self.built = {
+            child: (
+                sigma * self.draws.take(3, 3),
+                sigma * self.draws.take(n_leds, 3),
+            )
+            for child in plan.children
+        }
+        solver = "wls" if len(plan.children) > 1 else "closed_form"
+        self.cps: CpsStates = estimators.cps(t, plan.children, solver, FALSE_ALARM_RATE)
+        self.placed: dict[str, tuple[Observations, ParentEstimates]] = {}
+        self.datasets: dict[tuple[str, str, int], _DataSet] = {}
+        self.fixes: list[tuple[ParentEstimates, NDArray[np.float64]]] = []
+        self.distance = np.zeros(t)
+        self.failures = np.zeros(t, dtype=np.int64)
+        self.visits: dict[tuple[str, int], VisitOutcome] = {}
+        self._record_fix(self.robots[plan.parent].nominal.instrument)
+
+    # -- the steps -------------------------------------------------------------------------
+    def run(self) -> BatchOutcome:
+        """Execute every step of the plan and return the outcome."""
+        for step in self.plan.steps:
+            self.step(step)
+        return self.outcome()
+
+    def step(self, step: object) -> None:
+        """Execute one step of the plan for every trial."""
+        if isinstance(step, Drive):
+            self._drive(step)
+        elif isinstance(step, Place):
+            self._place(step.child)
+        elif isinstance(step, Fix):
+            self._fix(step.children)
+        elif isinstance(step, Point):
+            self._point(step)
+        elif isinstance(step, DataSetDone):
+            self._dataset(step).size = step.points
+        elif isinstance(step, Calibrate):
+            self._calibrate(step)
+        else:
+            raise TypeError(f"unknown step {step!r}")
+
+    def _drive(self, step: Drive) -> None:
+        robot = self.robots[step.robot]
+        believed = np.repeat(step.believed[None], self.trials, axis=0)
+        offset = _compose(robot.true, _inverse(robot.believed))
+        true = _compose(offset, believed)
+        stop = self.noise.stopping
+        true[:, :2] += stop.sigma_xy * self.draws.take(2)
+        true[:, 2] += stop.sigma_yaw * self.draws.take(1)[:, 0]
+        robot.true, robot.believed, robot.nominal = true, believed, step.truth
+
+    # -- shots -----------------------------------------------------------------------------
+    def _instrument(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The instrument's true centre (T, 3), m, and orientation (T, 3, 3) in W."""
+        parent = self.robots[self.plan.parent]
+        nominal = parent.nominal
+        assert nominal.instrument is not None
+        assert nominal.instrument2world is not None
+        centre = parent.moved(nominal.instrument)
+        turn = _rot_z(parent.true[:, 2] - nominal.pose[2])
+        return centre, turn @ nominal.instrument2world
+
+    def _cubes(self, child: str) -> NDArray[np.float64]:
+        """(T, 3, 3) the child's true cubes in W, its assembly's surveying error included."""
+        robot = self.robots[child]
+        assert robot.nominal.cubes is not None
+        error = np.einsum("tij,tkj->tki", _rot_z(robot.true[:, 2]), self.built[child][0])
+        return robot.moved(robot.nominal.cubes) + error
+
+    def _leds(self, child: str) -> NDArray[np.float64]:
+        """(T, N_led, 3) the child's true LEDs in W."""
+        robot = self.robots[child]
+        assert robot.nominal.leds is not None
+        error = np.einsum("tij,tkj->tki", _rot_z(robot.true[:, 2]), self.built[child][1])
+        return robot.moved(robot.nominal.leds) + error
+
+    def _shots(self, child: str) -> NDArray[np.float64]:
+        """(T, 3, 3) levelled, rounded polar shots at the child's three cubes."""
+        centre, orientation = self._instrument()
+        # In the instrument's (tilted) frame: R^T (p - c).
+        local = np.einsum("tji,tkj->tki", orientation, self._cubes(child) - centre[:, None])
+        # The instrument's tilt is the nominal station's (a turn about z leaves it).
+        roll, pitch = tilt_from_orientation(self.robots[self.plan.parent].nominal.instrument2world)
+        polar = cartesian2polar(local)
+        noisy = normalise_polar(polar + polar_sigmas(polar, self.spec) * self.draws.take(3, 3))
+        reading = self.inclinometer.sigma * self.draws.take(3, 2)
+        levelled = level_points(
+            polar2cartesian(noisy), roll + reading[..., 0], pitch + reading[..., 1]
+        )
+        return quantise_polar(cartesian2polar(levelled), self.spec)
+
+    def _observe(self, child: str) -> Observations:
+        obs = self.estimators.observe(
+            self._shots(child), self.advertised, self.advertised_tilt, self.marker, FALSE_ALARM_RATE
+        )
+        self.failures += obs.inconsistent
+        return obs
+
+    # -- CPS -------------------------------------------------------------------------------
+    def _place(self, child: str) -> None:
+        obs = self._observe(child)
+        self.cps.children_moved(child, obs)
+        parent = self.cps.parent
+        # The child's localisation is corrected from its marker's pose (as the campaign does).
+        r = parent.rotation @ obs.rotation
+        origin = parent.level2world(obs.translation[:, None, :])[:, 0]
+        self.robots[child].believed = np.column_stack(
+            [origin[:, 0], origin[:, 1], np.arctan2(r[:, 1, 0], r[:, 0, 0])]
+        )
+        self.placed[child] = (obs, parent)
+
+    def _fix(self, children: tuple[str, ...]) -> None:
+        observations = [(child, self._observe(child)) for child in children]
+        self.failures += self.cps.parent_moved(observations)
+        parent = self.cps.parent
+        self.robots[self.plan.parent].believed = np.column_stack(
+            [parent.translation[:, 0], parent.translation[:, 1], parent.yaw]
+        )
+        centre, _ = self._instrument()
+        self._record_fix(centre)
+
+    def _record_fix(self, true_centre: NDArray[np.float64] | None) -> None:
+        parent = self.cps.parent
+        if self.fixes:
+            last = self.fixes[-1][0].translation[:, :2]
+            self.distance = self.distance + np.linalg.norm(parent.translation[:, :2] - last, axis=1)
+        truth = np.zeros((self.trials, 3)) if true_centre is None else true_centre
+        self.fixes.append((parent, np.broadcast_to(truth, (self.trials, 3))))
+
+    # -- data and calibrations -------------------------------------------------------------
+    def _dataset(self, step: Point | DataSetDone | Calibrate, name: str | None = None) -> _DataSet:
+        key = (name or getattr(step, "dataset", "visit"), step.camera, step.visit)
+        return self.datasets.setdefault(key, _DataSet())
+
+    def _point(self, step: Point) -> None:
+        obs, parent = self.placed[step.child]
+        leds_level, _ = self.estimators.leds(obs, self.marker)
+        world = parent.level2world(leds_level)
+        camera = self.plan.cameras[step.camera]
+        true = self._leds(step.child)
+        pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(self.trials, -1, 2)
+        pixels = pixels + self.noise.led_detection_px * self.draws.take(true.shape[1], 2)
+        data = self._dataset(step)
+        data.points.append(world)
+        data.pixels.append(pixels)
+
+    def _calibrate(self, step: Calibrate) -> None:
+        data = self._dataset(step, "visit")
+        points, pixels = data.arrays(step.points)
+        truth = self.plan.cameras[step.camera]
+        est = self.estimators
+        cal = est.calibrate(points, pixels, truth.image_size, step.nominal)
+        position_error, rotation_error = est.truth_errors(cal, truth)
+        local = est.evaluate(cal, points, pixels)
+        reference = self.datasets.get(("reference", step.camera, 0))
+        if reference is not None and reference.points:
+            world = est.evaluate(cal, *reference.arrays(reference.size))
+        else:
+            world = (np.full(self.trials, np.nan), np.full(self.trials, np.nan))
+        parent = self.fixes[-1][0]
+        self.visits[(step.camera, step.visit)] = VisitOutcome(
+            points=step.points,
+            distance=self.distance.copy(),
+            position_error=position_error,
+            rotation_error=rotation_error,
+            world_pixel=world[0],
+            world_3d=world[1],
+            local_pixel=local[0],
+            local_3d=local[1],
+            predicted_transfer=_transfer_rms(parent, cal.position),
+            predicted_calibration=np.sqrt(np.sum(cal.position_std**2, axis=1)),
+            calibrated=cal.calibrated,
+        )
+
+    def outcome(self) -> BatchOutcome:
+        """What the trials gave so far."""
+        parent, truth = self.fixes[-1]
+        return BatchOutcome(
+            calibrations=dict(self.visits),
+            parent_error=parent.translation - truth,
+            parent_covariance=parent.covariance[:, 1:, 1:],
+            distance=self.distance.copy(),
+            failures=self.failures.copy(),
+        )
+
+
+def _transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(T,) RMS 3D error of a camera's centre (T, 3) from the parent's pose error at the
+    station (:func:`twin.montecarlo.prediction.camera_position_covariance`), m."""
+    lever = camera - parent.translation
+    jac = np.zeros((len(lever), 3, 4))
+    jac[:, 0, 0], jac[:, 1, 0] = -lever[:, 1], lever[:, 0]
+    jac[:, :, 1:] = np.eye(3)
+    cov = jac @ parent.covariance @ np.swapaxes(jac, 1, 2)
+    return np.sqrt(np.trace(cov, axis1=1, axis2=2))
+
+
+def calibrated_cameras(calibrations: Calibrations) -> list[TsaiCamera | None]:
+    """The calibrated cameras of a visit, trial by trial (None where it failed)."""
+    return list(calibrations.cameras)

@@ -1,0 +1,268 @@
+"""The campaign's plan for the batch fidelity: what the geometric fidelity does without
+noise, recorded once per scenario and strategy.
+
+:func:`record_plan` runs the campaign at the geometric fidelity with every noise source off
+(the instrument still advertises the scenario's noise, so the campaign weighs its data and
+solves CPS as in a real run), and records, in the order they happen:
+
+- every drive of a base: where the base believes it stopped, and where it truly stopped
+  (for a child, its corner cubes and LEDs in W; for the parent, its instrument's centre
+  and orientation in W);
+- every placement of a child in the CPS state (:class:`Place`: three shots at its cubes
+  from the standing parent), every fix of the parent (:class:`Fix`: three shots at each
+  child it was solved from);
+- every data point (:class:`Point`: the child's LEDs seen by a camera at its last
+  placement), every data set and every calibration.
+
+The batch executes this plan for many trials at once (:mod:`twin.batch.execute`), each with
+its own noise. Decisions are not taken again under noise: where a trial's noise would
+change a decision of the campaign (a re-aim after a lost lock, a stop skipped because an
+LED fell out of view, a retried fix), the batch keeps the noise-free decision.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera import TsaiCamera
+from calib.io.camera_files import camera_from_dict
+from twin.campaign import Campaign
+from twin.campaign.records import (
+    CALIBRATION,
+    CHILD_PLACED,
+    DATASET,
+    PARENT_FIX,
+    POINT,
+    SKIPPED,
+    CalibrationRecord,
+)
+from twin.campaign.strategies import strategy_for
+from twin.hal.devices import MobileBase
+from twin.hal.readings import DriveResult
+from twin.hal.recording import recorded
+from twin.hal.wrappers import MobileBaseWrapper, wrapped
+from twin.scenario.schema import Scenario
+from twin.sim.rig import SimRig, build_sim_rig
+from twin.sim.world import build_world
+
+
+@dataclass(frozen=True)
+class RobotTruth:
+    """Where a robot truly stands, in W.
+
+    Attributes:
+        pose: (3,) planar pose (x m, y m, yaw rad) of its body origin.
+        cubes, leds: (3, 3) and (N_led, 3) its marker's corner cubes and LEDs, m (a child).
+        instrument: (3,) the instrument's centre, m (the parent).
+        instrument2world: (3, 3) the instrument's orientation, tilt included (the parent).
+    """
+
+    pose: NDArray[np.float64]
+    cubes: NDArray[np.float64] | None = None
+    leds: NDArray[np.float64] | None = None
+    instrument: NDArray[np.float64] | None = None
+    instrument2world: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A base drove: ``believed`` (3,) is its pose estimate after the drive (the goal it
+    was sent to), ``truth`` where it stood in the noise-free run."""
+
+    robot: str
+    believed: NDArray[np.float64]
+    truth: RobotTruth
+
+
+@dataclass(frozen=True)
+class Place:
+    """The standing parent measured a child's three cubes and placed it in the CPS state;
+    the child's pose estimate was corrected from its marker's pose."""
+
+    child: str
+
+
+@dataclass(frozen=True)
+class Fix:
+    """The parent measured these children (three cubes each, in this order) and solved its
+    pose; its pose estimate was corrected from the solution."""
+
+    children: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Point:
+    """A camera found the LEDs of a child at its last placement: a data point."""
+
+    dataset: str
+    camera: str
+    visit: int
+    child: str
+
+
+@dataclass(frozen=True)
+class DataSetDone:
+    """A data set is complete: its first ``points`` LED points are the set."""
+
+    dataset: str
+    camera: str
+    visit: int
+    points: int
+
+
+@dataclass(frozen=True)
+class Calibrate:
+    """The camera was calibrated from its visit's data set (``points`` LED points);
+    ``nominal`` is the noise-free calibration (every trial's start)."""
+
+    camera: str
+    visit: int
+    points: int
+    nominal: TsaiCamera
+
+
+Step = Drive | Place | Fix | Point | DataSetDone | Calibrate
+
+
+@dataclass(frozen=True)
+class BatchPlan:
+    """The campaign of a scenario, as its strategy chose it without noise.
+
+    Attributes:
+        scenario: the scenario (with its noise, which the plan was recorded without).
+        strategy: the strategy's name.
+        parent: the parent's name. children: the children's names, in the rig's order.
+        start: each robot's truth at the first station (W is the parent's instrument frame
+            there).
+        steps: what the campaign did, in order.
+        cameras: each camera's true model in W.
+        planned_visits: (camera, visit) of every visit the strategy made, in order,
+            calibrated or not.
+    """
+
+    scenario: Scenario
+    strategy: str
+    parent: str
+    children: tuple[str, ...]
+    start: Mapping[str, RobotTruth]
+    steps: tuple[Step, ...]
+    cameras: Mapping[str, TsaiCamera]
+    planned_visits: tuple[tuple[str, int], ...] = field(default=())
+
+    @property
+    def calibrations(self) -> tuple[Calibrate, ...]:
+        """The calibrations of the plan, in order."""
+        return tuple(s for s in self.steps if isinstance(s, Calibrate))
+
+    def count(self, kind: type) -> int:
+        """How many steps of a kind the plan holds."""
+        return sum(isinstance(s, kind) for s in self.steps)
+
+
+def _truth(sim: SimRig, robot: str) -> RobotTruth:
+    """Where ``robot`` stands now, in W."""
+    world, frame = sim.world, sim.frame
+    pose = frame.pose(world.robot_pose(robot))
+    if robot == sim.rig.parent.name:
+        position, rotation = world.instrument_pose(robot)
+        return RobotTruth(
+            pose, instrument=frame.points(position), instrument2world=frame.mujoco2w @ rotation
+        )
+    cubes, leds = world.marker_points(robot)
+    return RobotTruth(pose, cubes=frame.points(cubes), leds=frame.points(leds))
+
+
+class _Recorder:
+    """Keeps the records of the run in order (topic, record)."""
+
+    def __init__(self) -> None:
+        self.records: list[tuple[str, Any]] = []
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        self.records.append((topic, record))
+
+
+TRUTH_AFTER_DRIVE = "/plan/truth"
+
+
+class _Witness(MobileBaseWrapper):
+    """A base that records where it truly stopped after each drive."""
+
+    def __init__(self, inner: MobileBase, sim: SimRig, recorder: _Recorder) -> None:
+        super().__init__(inner)
+        self.sim, self.recorder = sim, recorder
+
+    def drive_to(self, goal_xy, goal_yaw=None) -> DriveResult:
+        result = self.inner.drive_to(goal_xy, goal_yaw)
+        self.recorder.record(TRUTH_AFTER_DRIVE, (self.name, _truth(self.sim, self.name)), 0.0)
+        return result
+
+
+def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
+    """Run the campaign of ``scenario`` once at the geometric fidelity without noise and
+    record its plan (see the module).
+
+    Args:
+        scenario: the scenario, with its noise (the instrument advertises it).
+        strategy: the campaign's strategy by name (default: the scenario's).
+    """
+    chosen = strategy_for(scenario, strategy)
+    quiet = scenario.without_noise()
+    world = build_world(quiet)
+    recorder = _Recorder()
+    sim = build_sim_rig(world, "geometric", advertised=scenario.noise)
+    try:
+        start = {name: _truth(sim, name) for name in (sim.rig.parent.name, *sim.rig.children)}
+        cameras = {name: sim.frame.camera(world.camera(name)) for name in world.camera_names}
+        devices = wrapped(sim.rig, base=lambda base: _Witness(base, sim, recorder))
+        rig = recorded(devices, recorder)
+        Campaign(rig, quiet, recorder, strategy=chosen).run()
+        parent, children = sim.rig.parent.name, tuple(sim.rig.children)
+    finally:
+        sim.close()
+    steps, visits = _steps(recorder.records)
+    return BatchPlan(
+        scenario=scenario,
+        strategy=chosen.name,
+        parent=parent,
+        children=children,
+        start=start,
+        steps=tuple(steps),
+        cameras=cameras,
+        planned_visits=tuple(visits),
+    )
+
+
+def _steps(records: list[tuple[str, Any]]) -> tuple[list[Step], list[tuple[str, int]]]:
+    """The plan's steps and visits from a run's records, in order."""
+    steps: list[Step] = []
+    visits: list[tuple[str, int]] = []
+    truth: dict[str, RobotTruth] = {}
+    for topic, rec in records:
+        if topic == TRUTH_AFTER_DRIVE:
+            name, where = rec
+            truth[name] = where
+        elif topic.startswith("/base/") and topic.endswith("/drive"):
+            steps.append(Drive(rec.robot, rec.odometry.pose, truth.pop(rec.robot)))
+        elif topic == CHILD_PLACED:
+            steps.append(Place(rec.child))
+        elif topic == PARENT_FIX and rec.children:
+            steps.append(Fix(tuple(rec.children)))
+        elif topic == POINT:
+            steps.append(Point(rec.dataset, rec.camera, rec.visit, rec.child))
+        elif topic == DATASET:
+            steps.append(DataSetDone(rec.dataset, rec.camera, rec.visit, rec.points))
+        elif topic == CALIBRATION:
+            assert isinstance(rec, CalibrationRecord)
+            model = camera_from_dict(rec.camera_model, f"calibration of {rec.camera}")
+            assert isinstance(model, TsaiCamera)
+            steps.append(Calibrate(rec.camera, rec.visit, rec.points, model))
+            visits.append((rec.camera, rec.visit))
+        elif topic == SKIPPED:
+            visits.append((rec.camera, rec.visit))
+    return steps, visits
