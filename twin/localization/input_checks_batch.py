@@ -21,6 +21,10 @@ def _first(mask: NDArray[np.bool_]) -> tuple[int, ...]:
     return tuple(int(i) for i in np.argwhere(mask)[0])
 
 
+def _name(index: tuple[int, ...]) -> str:
+    return str(index[0]) if len(index) == 1 else str(index)
+
+
 def check_covariances_batch(cov: ArrayLike, n: int, name: str) -> NDArray[np.float64]:
     """:func:`.input_checks.check_covariance` of every matrix of a (..., n, n) stack.
 
@@ -34,13 +38,24 @@ def check_covariances_batch(cov: ArrayLike, n: int, name: str) -> NDArray[np.flo
     ct = np.swapaxes(c, -1, -2)
     asym = ~(np.abs(c - ct) <= 1e-15 + 1e-8 * np.abs(ct)).all(axis=(-1, -2))
     if asym.any():
-        raise ValueError(f"{name} must be symmetric (trial {_first(asym)} is not)")
-    eig = np.linalg.eigvalsh(0.5 * (c + ct))
+        raise ValueError(f"{name} must be symmetric (trial {_name(_first(asym))} is not)")
+    sym = 0.5 * (c + ct)
+    # Fast path: C + delta I positive definite, with delta = PSD_TOLERANCE * max |C_ii| (at
+    # most PSD_TOLERANCE times the largest |eigenvalue|), proves every smallest eigenvalue
+    # above the scalar check's bound. Singular or bad matrices take the eigenvalues.
+    diagonal = np.abs(np.diagonal(sym, axis1=-2, axis2=-1)).max(axis=-1)
+    try:
+        np.linalg.cholesky(sym + (PSD_TOLERANCE * diagonal)[..., None, None] * np.eye(n))
+    except np.linalg.LinAlgError:
+        pass
+    else:
+        return c
+    eig = np.linalg.eigvalsh(sym)
     negative = eig[..., 0] < -PSD_TOLERANCE * np.abs(eig).max(axis=-1)
     if negative.any():
         trial = _first(negative)
         raise ValueError(
-            f"{name} is not positive semidefinite (trial {trial}: smallest eigenvalue "
+            f"{name} is not positive semidefinite (trial {_name(trial)}: smallest eigenvalue "
             f"{eig[trial][0]:.3g}); a covariance cannot have negative variances"
         )
     return c
