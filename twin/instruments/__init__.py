@@ -13,4 +13,5 @@ Modules, one job each (pure numpy/scipy, shared by the simulated and the real in
 - :mod:`.shot`: one complete simulated shot, and a vectorised batch of shots.
 - :mod:`.marker`, :mod:`.marker_pose`: the cube/LED assembly, its pose from three cubes,
   LED positions and covariance, and the chi-square of the cubes against the assembly.
+- :mod:`.marker_pose_batch`: the same over arrays of Monte Carlo trials.
 """

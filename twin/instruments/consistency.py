@@ -21,7 +21,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2 as chi2_law
 
 from twin.instruments.errors import ConsistencyError
@@ -82,3 +82,26 @@ def raise_if_inconsistent(
             false_alarm_rate=false_alarm_rate,
             **details,
         )
+
+
+def chi2_statistic_batch(residuals: ArrayLike, covariances: ArrayLike) -> NDArray[np.float64]:
+    """:func:`chi2_statistic` of (..., k) residuals with their (..., k, k) covariances -> (...,).
+
+    Each statistic is computed from its own residual and covariance alone (the same
+    arithmetic as :func:`chi2_statistic`, one small solve per statistic).
+    """
+    e = np.asarray(residuals, dtype=float)
+    k = e.shape[-1]
+    c = np.asarray(covariances, dtype=float) + NUMERICAL_FLOOR**2 * np.eye(k)
+    return np.sum(e * np.linalg.solve(c, e[..., None])[..., 0], axis=-1)
+
+
+def exceeds_threshold(
+    chi2: ArrayLike, dof: int, false_alarm_rate: float | None
+) -> NDArray[np.bool_]:
+    """(...,) chi-square values -> (...,) True where :func:`raise_if_inconsistent` would
+    raise: above the quantile at ``false_alarm_rate``, or NaN; all False for rate None."""
+    values = np.asarray(chi2, dtype=float)
+    if false_alarm_rate is None:
+        return np.zeros(values.shape, dtype=bool)
+    return ~(values <= chi2_threshold(dof, false_alarm_rate))

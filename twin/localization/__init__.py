@@ -12,4 +12,12 @@
   marker fit rejects a wrong prism with ``InconsistentMarkerError``).
 - :mod:`.sequence`: ``CpsSequence``, the joint estimate and the record of every step.
 - :mod:`.leapfrog`: a pure-numpy straight leapfrog simulator and Monte Carlo.
+
+The same over arrays of T Monte Carlo trials (each trial equals the scalar code on its
+data; what the scalar code raises for one trial is a per-trial flag):
+
+- :mod:`.input_checks_batch`, :mod:`.pose_batch` (``ParentPoseBatch``,
+  ``CpsSolutionBatch``), :mod:`.closed_form_batch`, :mod:`.wls_batch`.
+- :mod:`.observation_batch`: ``ChildObservationBatch`` and ``observe_child_batch``.
+- :mod:`.sequence_batch`: ``CpsBatch``, the joint estimates of T trials.
 """
