@@ -4,4 +4,5 @@
 - :mod:`.execute`: :class:`BatchRun`, the plan for T trials, noise and estimates as arrays.
 - :mod:`.estimators`: the campaign's estimators over trials; :class:`TrialByTrial` runs the
   scalar code on each trial in turn (the reference).
+- :mod:`.vectorised`: :class:`Vectorised`, the same estimators as array code (the default).
 """

@@ -123,6 +123,12 @@ class Calibrations:
     calibrated: NDArray[np.bool_]
 
 
+def found(points: NDArray[np.float64], pixels: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(N,) which of (N, 3) points and (N, 2) pixels a trial measured (the rest are NaN:
+    stops it gave up)."""
+    return np.isfinite(points).all(axis=1) & np.isfinite(pixels).all(axis=1)
+
+
 class Estimators(abc.ABC):
     """What the batch executor needs to estimate, for T trials at once (see the module)."""
 
@@ -158,7 +164,8 @@ class Estimators(abc.ABC):
         image_size: tuple[int, int],
         start: TsaiCamera,
     ) -> Calibrations:
-        """Tsai's calibration of (T, N, 3) points and (T, N, 2) pixels."""
+        """Tsai's calibration of (T, N, 3) points and (T, N, 2) pixels (NaN rows are
+        points a trial did not measure: :func:`found`)."""
 
     @abc.abstractmethod
     def evaluate(
@@ -271,8 +278,9 @@ class TrialByTrial(Estimators):
         cameras: list[TsaiCamera | None] = []
         position, std = [], []
         for k in range(len(points)):
+            kept = found(points[k], pixels[k])
             try:
-                result = calibrate_tsai(points[k], pixels[k], image_size)
+                result = calibrate_tsai(points[k][kept], pixels[k][kept], image_size)
             except ValueError:
                 cameras.append(None)
                 position.append(np.full(3, np.nan))
@@ -294,11 +302,12 @@ class TrialByTrial(Estimators):
     def evaluate(self, calibrations, points, pixels):
         pix, err = [], []
         for k, cam in enumerate(calibrations.cameras):
-            if cam is None or len(points[k]) == 0:
+            kept = found(points[k], pixels[k])
+            if cam is None or not kept.any():
                 pix.append(np.nan)
                 err.append(np.nan)
                 continue
-            m = evaluate(cam, points[k], pixels[k])
+            m = evaluate(cam, points[k][kept], pixels[k][kept])
             pix.append(m.pixel.mean)
             err.append(m.error_3d.mean)
         return np.array(pix), np.array(err)

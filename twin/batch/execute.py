@@ -41,7 +41,6 @@ from twin.batch.estimators import (
     Estimators,
     Observations,
     ParentEstimates,
-    TrialByTrial,
 )
 from twin.batch.plan import (
     BatchPlan,
@@ -53,12 +52,14 @@ from twin.batch.plan import (
     Point,
     RobotTruth,
 )
+from twin.batch.vectorised import Vectorised
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.noise import normalise_polar, polar_sigmas, quantise_polar
 from twin.instruments.polar import cartesian2polar, polar2cartesian
 from twin.instruments.tilt import level_points, tilt_from_orientation
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.scenario.schema import Noise
+from twin.sim.capture import in_image
 
 BATCH_STREAM = 11
 """Spawn key of a trial's stream of the batch fidelity's noise."""
@@ -187,7 +188,8 @@ class VisitOutcome:
     """A visit's calibration in T trials: (T,) arrays unless said.
 
     Attributes:
-        points: LED points used. distance: the parent's travel at the calibration, m.
+        points: LED points used (fewer where a trial gave up stops). distance: the
+            parent's travel at the calibration, m.
         position_error: m. rotation_error: rad (NaN where not calibrated).
         world_pixel, world_3d: Table III against the reference set (px, m), NaN without one.
         local_pixel, local_3d: Table III against the visit's own data (px, m).
@@ -196,7 +198,7 @@ class VisitOutcome:
         calibrated: whether each trial's calibration succeeded.
     """
 
-    points: int
+    points: NDArray[np.int64]
     distance: NDArray[np.float64]
     position_error: NDArray[np.float64]
     rotation_error: NDArray[np.float64]
@@ -233,7 +235,8 @@ class BatchRun:
         seeds: (T,) each trial's root seed.
         noise: the noise the trials simulate (an error budget's one source: see
             :func:`twin.montecarlo.sources.isolate`); default the plan's scenario's.
-        estimators: the estimators (default: the campaign's own, trial by trial).
+        estimators: the estimators (default: :class:`twin.batch.vectorised.Vectorised`,
+            the campaign's own as array code).
     """
 
     def __init__(
@@ -244,7 +247,7 @@ class BatchRun:
         estimators: Estimators | None = None,
     ) -> None:
         if estimators is None:
-            estimators = TrialByTrial()
+            estimators = Vectorised()
         sc = plan.scenario
         self.plan = plan
         self.trials = len(seeds)
@@ -409,7 +412,16 @@ class BatchRun:
         camera = self.plan.cameras[step.camera]
         true = self._leds(step.child)
         pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(self.trials, -1, 2)
+        # An LED is found when all of its blob lies in the image (as the camera's sensor
+        # has it); a trial that misses one gives up the stop and counts a failure.
+        distance = np.linalg.norm(true - camera.position, axis=2)
+        margin = camera.f * self.plan.led_radii[step.child] / distance
+        seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
+        lost = ~seen.reshape(self.trials, -1).all(axis=1)
+        self.failures += lost
         pixels = pixels + self.noise.led_detection_px * self.draws.take(true.shape[1], 2)
+        world = np.where(lost[:, None, None], np.nan, world)
+        pixels = np.where(lost[:, None, None], np.nan, pixels)
         data = self._dataset(step)
         data.points.append(world)
         data.pixels.append(pixels)
@@ -429,7 +441,7 @@ class BatchRun:
             world = (np.full(self.trials, np.nan), np.full(self.trials, np.nan))
         parent = self.fixes[-1][0]
         self.visits[(step.camera, step.visit)] = VisitOutcome(
-            points=step.points,
+            points=np.isfinite(pixels).all(axis=2).sum(axis=1),
             distance=self.distance.copy(),
             position_error=position_error,
             rotation_error=rotation_error,

@@ -47,7 +47,9 @@ from twin.hal.readings import DriveResult
 from twin.hal.recording import recorded
 from twin.hal.wrappers import MobileBaseWrapper, wrapped
 from twin.scenario.schema import Scenario
+from twin.sim.capture import led_radii
 from twin.sim.rig import SimRig, build_sim_rig
+from twin.sim.robots import N_LEDS
 from twin.sim.world import build_world
 
 
@@ -141,6 +143,7 @@ class BatchPlan:
             there).
         steps: what the campaign did, in order.
         cameras: each camera's true model in W.
+        led_radii: each child's (N_led,) LED radii, m (an LED is seen whole or not at all).
         planned_visits: (camera, visit) of every visit the strategy made, in order,
             calibrated or not.
     """
@@ -152,6 +155,7 @@ class BatchPlan:
     start: Mapping[str, RobotTruth]
     steps: tuple[Step, ...]
     cameras: Mapping[str, TsaiCamera]
+    led_radii: Mapping[str, NDArray[np.float64]]
     planned_visits: tuple[tuple[str, int], ...] = field(default=())
 
     @property
@@ -219,6 +223,7 @@ def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
     try:
         start = {name: _truth(sim, name) for name in (sim.rig.parent.name, *sim.rig.children)}
         cameras = {name: sim.frame.camera(world.camera(name)) for name in world.camera_names}
+        radii = led_radii(world)
         devices = wrapped(sim.rig, base=lambda base: _Witness(base, sim, recorder))
         rig = recorded(devices, recorder)
         Campaign(rig, quiet, recorder, strategy=chosen).run()
@@ -234,6 +239,7 @@ def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
         start=start,
         steps=tuple(steps),
         cameras=cameras,
+        led_radii={c: np.array([radii[(c, k)] for k in range(N_LEDS)]) for c in children},
         planned_visits=tuple(visits),
     )
 

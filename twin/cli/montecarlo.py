@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -46,10 +47,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--fidelity",
-        choices=("geometric", "render"),
-        default="geometric",
-        help="geometric (default): robots placed with a stopping error, LEDs projected; "
-        "render: robots driven in MuJoCo, rendered images",
+        choices=("batch", "geometric", "render"),
+        default="batch",
+        help="batch (default): the campaign's plan for many trials at once, as arrays "
+        "(see the README for what it leaves out); geometric: each trial a campaign with "
+        "robots placed with a stopping error, LEDs projected; render: robots driven in "
+        "MuJoCo, rendered images",
+    )
+    p.add_argument(
+        "--chunk-size",
+        type=arguments.positive_int,
+        help="trials one array holds at the batch fidelity (default: the trials shared "
+        "evenly among the workers, at most 200)",
     )
     p.add_argument(
         "--workers",
@@ -104,6 +113,9 @@ def run(args: argparse.Namespace) -> int:
     if args.ray_address and args.engine != "ray":
         console.print("[red]error:[/red] --ray-address goes with --engine ray")
         return 2
+    if args.chunk_size is not None and args.fidelity != "batch":
+        console.print("[red]error:[/red] --chunk-size goes with --fidelity batch")
+        return 2
     out = args.out or Path("out") / f"{sc.name}-montecarlo"
     check_folder(out, "montecarlo", OUTPUTS, overwrite=args.overwrite, resume=args.resume)
     configs = configurations(not args.no_budget)
@@ -147,13 +159,14 @@ def run(args: argparse.Namespace) -> int:
                 progress=show,
                 strategy=args.strategy,
                 overwrite=args.overwrite,
+                chunk_size=args.chunk_size,
             )
         except TrialFailed as exc:
-            console.print(f"[red]error:[/red] {exc}", highlight=False)
+            console.print(f"[red]error:[/red] {escape(str(exc))}", highlight=False)
             console.print(f"the finished trials are in {out}; --resume continues the run")
             return 1
         except (ValueError, FileNotFoundError, RuntimeError) as exc:
-            console.print(f"[red]error:[/red] {exc}")
+            console.print(f"[red]error:[/red] {escape(str(exc))}")
             return 2
         except KeyboardInterrupt as exc:
             console.print(

@@ -16,7 +16,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from twin.batch.plan import record_plan
 from twin.campaign.strategies import strategy_for
+from twin.montecarlo.batch_trials import (
+    BATCH_OMITS,
+    check_batch_scenario,
+    chunks,
+    default_chunk_size,
+    run_batch_chunk,
+)
 from twin.montecarlo.engines import make_engine
 from twin.montecarlo.seeds import trial_seed
 from twin.montecarlo.sources import configurations
@@ -26,6 +34,9 @@ from twin.outputs import claim_folder, write_text_atomic
 from twin.report.reading import planned_visits
 from twin.scenario import Scenario
 from twin.scenario.limits import check_seed
+
+FIDELITIES = ("batch", "geometric", "render")
+"""The fidelities a Monte-Carlo run can use (``batch`` by default)."""
 
 TABLE = "trials.csv"
 SETTINGS = "montecarlo.json"
@@ -83,7 +94,7 @@ def run_montecarlo(
     out_dir: str | Path,
     trials: int,
     *,
-    fidelity: str = "geometric",
+    fidelity: str = "batch",
     master_seed: int | None = None,
     budget: bool = False,
     workers: int = 1,
@@ -94,6 +105,7 @@ def run_montecarlo(
     trial_fn: Callable[[TrialSpec], Any] = run_trial,
     strategy: str | None = None,
     overwrite: bool = False,
+    chunk_size: int | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
 
@@ -101,7 +113,8 @@ def run_montecarlo(
         scenario: the scenario, with the noise of the real system.
         out_dir: where ``trials.csv`` and ``montecarlo.json`` go.
         trials: trials per configuration.
-        fidelity: ``geometric`` or ``render``.
+        fidelity: ``batch`` (default: the campaign's plan for many trials at once),
+            ``geometric`` or ``render``.
         master_seed: the seed every trial's seed follows from (default: the scenario's).
         budget: also run each noise source alone (:mod:`twin.montecarlo.sources`).
         workers: processes (local) or CPUs of a new local Ray instance (ray).
@@ -113,6 +126,9 @@ def run_montecarlo(
         strategy: the campaign's strategy by name (default: the scenario's
             ``campaign.strategy``).
         overwrite: replace what an earlier run wrote in ``out_dir``.
+        chunk_size: trials one array holds at the batch fidelity (default: the trials
+            shared evenly among the workers, at most
+            :data:`twin.montecarlo.batch_trials.DEFAULT_CHUNK_SIZE`).
 
     Raises:
         ValueError: for bad counts, an unknown strategy, or settings that differ from the
@@ -122,12 +138,22 @@ def run_montecarlo(
     """
     if trials < 1:
         raise ValueError(f"trials must be at least 1, got {trials}")
-    if fidelity not in ("geometric", "render"):
-        raise ValueError(f"fidelity must be geometric or render, got {fidelity!r}")
+    if fidelity not in FIDELITIES:
+        raise ValueError(f"fidelity must be one of {', '.join(FIDELITIES)}, got {fidelity!r}")
+    if chunk_size is not None and (fidelity != "batch" or chunk_size < 1):
+        raise ValueError(
+            f"chunk_size (trials one array holds) goes with the batch fidelity and must be at "
+            f"least 1, got {chunk_size} at the {fidelity} fidelity"
+        )
     seed = scenario.seed if master_seed is None else check_seed(master_seed)
     strategy_name = strategy_named_in(scenario, strategy)
     configs = configurations(budget)
     settings = _settings(scenario, fidelity, strategy_name, seed, configs)
+    plan = None
+    if fidelity == "batch":
+        check_batch_scenario(scenario)
+        plan = record_plan(scenario, strategy_name)
+        settings["batch_omits"] = list(BATCH_OMITS)
     runner = make_engine(engine, workers, ray_address)
     try:
         folder = claim_folder(
@@ -149,11 +175,20 @@ def run_montecarlo(
             todo = [s for s in specs if (s.config, s.trial) not in table.done]
             done0 = len(specs) - len(todo)
             t0 = time.perf_counter()
-            for n, result in enumerate(runner.imap_unordered(trial_fn, todo), start=1):
-                table.append(result.rows)
-                if progress:
-                    rate = n / max(time.perf_counter() - t0, 1e-9)
-                    progress(McProgress(done0 + n, len(specs), rate, result.spec))
+            if plan is not None:
+                size = chunk_size or default_chunk_size(len(todo), workers)
+                units: list[Any] = list(chunks(plan, todo, size))
+                fn: Callable[[Any], Any] = run_batch_chunk
+            else:
+                units, fn = todo, trial_fn
+            n = 0
+            for unit in runner.imap_unordered(fn, units):
+                for result in unit if isinstance(unit, list) else [unit]:
+                    table.append(result.rows)
+                    n += 1
+                    if progress:
+                        rate = n / max(time.perf_counter() - t0, 1e-9)
+                        progress(McProgress(done0 + n, len(specs), rate, result.spec))
             elapsed = time.perf_counter() - t0
             rows = table.finish(configs)
     finally:

@@ -293,15 +293,19 @@ def project_or_nan(camera: TsaiCamera | OpenCVCamera, points: ArrayLike) -> NDAr
     return out
 
 
-def in_image(pixels: ArrayLike, image_size: Sequence[int]) -> NDArray[np.bool_]:
-    """(N,) whether (N, 2) pixels lie inside an image of ``image_size`` (width, height)."""
+def in_image(
+    pixels: ArrayLike, image_size: Sequence[int], margin: ArrayLike = 0.0
+) -> NDArray[np.bool_]:
+    """(N,) whether (N, 2) pixels lie inside an image of ``image_size`` (width, height), at
+    least ``margin`` (scalar or (N,), px) from its edge (a blob's radius: all of it inside)."""
     uv = np.asarray(pixels, dtype=float).reshape(-1, 2)
+    m = np.asarray(margin, dtype=float).reshape(-1)
     w, h = image_size
     with np.errstate(invalid="ignore"):
         return (
             np.isfinite(uv).all(axis=1)
-            & (uv[:, 0] >= -0.5)
-            & (uv[:, 0] <= w - 0.5)
-            & (uv[:, 1] >= -0.5)
-            & (uv[:, 1] <= h - 0.5)
+            & (uv[:, 0] >= m - 0.5)
+            & (uv[:, 0] <= w - 0.5 - m)
+            & (uv[:, 1] >= m - 0.5)
+            & (uv[:, 1] <= h - 0.5 - m)
         )

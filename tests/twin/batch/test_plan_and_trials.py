@@ -3,6 +3,7 @@ exactly, and each trial's result depends on its seed alone."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 from twin.batch.estimators import TrialByTrial
 from twin.batch.execute import BatchRun
 from twin.batch.plan import Calibrate, Drive, Fix, Place, Point, record_plan
+from twin.batch.vectorised import Vectorised
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -60,13 +62,56 @@ def test_without_noise_every_camera_is_recovered_exactly(name, smoke_plan, hall_
     assert not out.failures.any()
 
 
-def test_a_trial_alone_gives_what_it_gives_in_a_batch(smoke_plan):
+@pytest.mark.parametrize("estimators", [TrialByTrial(), Vectorised()], ids=["scalar", "arrays"])
+def test_a_trial_alone_gives_what_it_gives_in_a_batch(smoke_plan, estimators):
     seeds = [11, 12, 13, 14]
-    batch = BatchRun(smoke_plan, seeds, estimators=TrialByTrial()).run()
-    alone = BatchRun(smoke_plan, [13], estimators=TrialByTrial()).run()
+    batch = BatchRun(smoke_plan, seeds, estimators=estimators).run()
+    alone = BatchRun(smoke_plan, [13], estimators=estimators).run()
     ((key, v),) = batch.calibrations.items()
     w = alone.calibrations[key]
     assert v.position_error[2] == w.position_error[0]
     assert v.local_pixel[2] == w.local_pixel[0]
     np.testing.assert_array_equal(batch.parent_error[2], alone.parent_error[0])
     assert len(set(np.round(v.position_error, 12))) == len(seeds)  # trials differ
+
+
+def _assert_same_outcome(a, b):
+    assert a.calibrations.keys() == b.calibrations.keys()
+    for key, v in a.calibrations.items():
+        w = b.calibrations[key]
+        for field in dataclasses.fields(v):
+            a_, b_ = getattr(v, field.name), getattr(w, field.name)
+            np.testing.assert_array_equal(a_, b_, err_msg=f"{key} {field.name}")
+    np.testing.assert_array_equal(a.parent_error, b.parent_error)
+    np.testing.assert_array_equal(a.parent_covariance, b.parent_covariance)
+    np.testing.assert_array_equal(a.failures, b.failures)
+
+
+def test_the_array_estimators_give_the_campaigns_numbers(hall_plan):
+    # The hall's five visits in twelve trials: each number the scalar code's, bit for bit.
+    seeds = list(range(100, 112))
+    scalar = BatchRun(hall_plan, seeds, estimators=TrialByTrial()).run()
+    arrays = BatchRun(hall_plan, seeds, estimators=Vectorised()).run()
+    _assert_same_outcome(scalar, arrays)
+    assert all(v.calibrated.sum() >= 10 for v in arrays.calibrations.values())
+
+
+def test_a_stop_whose_led_leaves_the_image_is_given_up(smoke_plan):
+    # LEDs as wide as the image: no stop sees all of its LEDs whole. Every trial gives up
+    # every stop, counts each as a failure, and calibrates nothing.
+    quiet = smoke_plan.scenario.without_noise().noise
+    wide = dataclasses.replace(
+        smoke_plan, led_radii={c: np.full(4, 10.0) for c in smoke_plan.led_radii}
+    )
+    out = BatchRun(wide, [1, 2], noise=quiet).run()
+    stops = wide.count(Point)
+    np.testing.assert_array_equal(out.failures, [stops, stops])
+    (v,) = out.calibrations.values()
+    assert not v.calibrated.any()
+    np.testing.assert_array_equal(v.points, [0, 0])
+    # With the LEDs' true radii every stop is seen without noise.
+    out = BatchRun(smoke_plan, [1, 2], noise=quiet).run()
+    assert not out.failures.any()
+    (v,) = out.calibrations.values()
+    (planned,) = smoke_plan.calibrations
+    np.testing.assert_array_equal(v.points, [planned.points] * 2)

@@ -63,9 +63,23 @@ def test_a_monte_carlo_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys
     scenario.write_text(text)
     out = tmp_path / "mc"
     args = ["montecarlo", str(scenario), "--trials", "2", "--no-budget", "--out", str(out)]
-    assert main(args) == 1
+    assert main([*args, "--fidelity", "geometric"]) == 1
     assert "no trial calibrated any camera" in " ".join(capsys.readouterr().out.split())
     assert (out / "summary.json").exists()
+
+
+def test_the_batch_fidelity_refuses_a_scenario_with_faults(tmp_path, capsys):
+    # The batch injects no faults: it says so, names the fidelity that does, writes nothing.
+    text = SMOKE.read_text().replace("[route]", "[faults]\nunreachable = [[0.5, 0.0]]\n\n[route]")
+    scenario = tmp_path / "blocked.toml"
+    scenario.write_text(text)
+    out = tmp_path / "mc"
+    args = ["montecarlo", str(scenario), "--trials", "2", "--no-budget", "--out", str(out)]
+    assert main(args) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert "the batch fidelity injects no faults" in said
+    assert "sets [faults]; run it with --fidelity geometric" in said
+    assert not out.exists()
 
 
 def test_a_first_station_on_a_slope_ends_the_run_with_its_reason(tmp_path):

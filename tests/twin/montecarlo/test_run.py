@@ -1,5 +1,5 @@
 """Whole Monte-Carlo runs of the smoke scenario: the table is the same whatever the number
-of workers, the engine, or an interruption; the outputs are written."""
+of workers, the engine, the chunk size, or an interruption; the outputs are written."""
 
 from __future__ import annotations
 
@@ -33,9 +33,17 @@ def smoke():
 
 @pytest.fixture(scope="module")
 def reference(smoke, tmp_path_factory):
-    """An uninterrupted run in this process (one worker)."""
+    """An uninterrupted run in this process (one worker, the batch fidelity)."""
     out = tmp_path_factory.mktemp("reference")
     rows = run_montecarlo(smoke, out, TRIALS, master_seed=11)
+    return out, rows
+
+
+@pytest.fixture(scope="module")
+def geometric_reference(smoke, tmp_path_factory):
+    """The same at the geometric fidelity (one trial a campaign)."""
+    out = tmp_path_factory.mktemp("geometric")
+    rows = run_montecarlo(smoke, out, TRIALS, master_seed=11, fidelity="geometric")
     return out, rows
 
 
@@ -101,10 +109,30 @@ def test_a_local_ray_instance_gives_the_same_rows(smoke, reference, tmp_path):
     assert rows == ref_rows
 
 
-def test_a_killed_run_resumes_to_the_same_table(reference, tmp_path):
+def test_the_table_is_the_same_whatever_the_chunk_size(smoke, reference, tmp_path):
+    # One trial an array, or three and one: each trial's draws are its own.
+    _, ref_rows = reference
+    for size in (1, 3):
+        rows = run_montecarlo(smoke, tmp_path / str(size), TRIALS, master_seed=11, chunk_size=size)
+        assert rows == ref_rows
+
+
+def test_a_batch_run_cut_short_resumes_to_the_same_table(smoke, reference, tmp_path):
+    # A batch run killed after its first chunk leaves the table's first rows: resuming runs
+    # the rest and the table is the uninterrupted run's, byte for byte.
     ref_out, _ = reference
+    lines = (ref_out / TABLE).read_text().splitlines(keepends=True)
+    (tmp_path / TABLE).write_text("".join(lines[:3]))
+    (tmp_path / SETTINGS).write_text((ref_out / SETTINGS).read_text())
+    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, resume=True, chunk_size=1)
+    assert (tmp_path / TABLE).read_bytes() == (ref_out / TABLE).read_bytes()
+    assert len(rows) == TRIALS
+
+
+def test_a_killed_run_resumes_to_the_same_table(geometric_reference, tmp_path):
+    ref_out, _ = geometric_reference
     cmd = [sys.executable, "-m", "twin.cli", "montecarlo", str(SMOKE), "--trials", str(TRIALS)]
-    cmd += ["--seed", "11", "--no-budget", "--out", str(tmp_path)]
+    cmd += ["--seed", "11", "--no-budget", "--fidelity", "geometric", "--out", str(tmp_path)]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     table = tmp_path / TABLE
     deadline = time.monotonic() + 120
@@ -120,8 +148,10 @@ def test_a_killed_run_resumes_to_the_same_table(reference, tmp_path):
     assert 1 <= kept < TRIALS, proc.stderr.read().decode()[-2000:]
     smoke = load_scenario(SMOKE)
     with pytest.raises(ValueError, match="--resume"):
-        run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11)
-    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, resume=True)
+        run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, fidelity="geometric")
+    rows = run_montecarlo(
+        smoke, tmp_path, TRIALS, master_seed=11, fidelity="geometric", resume=True
+    )
     assert table.read_bytes() == (ref_out / TABLE).read_bytes()
     assert len(rows) == TRIALS
 
@@ -146,6 +176,8 @@ def test_resuming_with_other_settings_is_refused(smoke, reference, tmp_path):
         ({"trials": 1, "engine": "dask"}, "unknown engine"),
         ({"trials": 1, "workers": 0}, "workers must be at least 1"),
         ({"trials": 1, "ray_address": "auto"}, "--ray-address goes with --engine ray"),
+        ({"trials": 1, "chunk_size": 0}, "chunk_size .* must be at least 1, got 0"),
+        ({"trials": 1, "fidelity": "geometric", "chunk_size": 5}, "goes with the batch fidelity"),
     ],
 )
 def test_bad_settings_are_refused(smoke, tmp_path, kwargs, match):
@@ -165,6 +197,16 @@ def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
     base = ["montecarlo", str(SMOKE), "--trials", "1", "--out", str(tmp_path / "mc")]
     assert main([*base, "--ray-address", "auto"]) == 2
     assert "--ray-address goes with --engine ray" in capsys.readouterr().out
+    assert main([*base, "--fidelity", "geometric", "--chunk-size", "5"]) == 2
+    assert "--chunk-size goes with --fidelity batch" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        main([*base, "--chunk-size", "0"])
+    assert exit_.value.code == 2
+    assert "--chunk-size: must be at least 1, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        main([*base, "--fidelity", "exact"])
+    assert exit_.value.code == 2
+    assert "invalid choice: 'exact'" in capsys.readouterr().err
     assert main(["montecarlo", str(tmp_path / "none.toml"), "--trials", "1"]) == 2
     with pytest.raises(SystemExit) as exit_:
         main([*base[:2], "--trials", "0"])
@@ -188,7 +230,7 @@ def test_a_trial_that_raises_is_named_and_the_finished_ones_are_kept(tmp_path, m
     monkeypatch.setattr(twin.runner, "run_scenario", second_fails)
     out = tmp_path / "mc"
     args = ["montecarlo", str(SMOKE), "--trials", "3", "--seed", "5", "--no-budget"]
-    assert main([*args, "--out", str(out)]) == 1
+    assert main([*args, "--fidelity", "geometric", "--out", str(out)]) == 1
     said = " ".join(capsys.readouterr().out.split())
     assert f"trial 1 of 'all' (seed {trial_seed(5, 1)}) failed: ValueError: the children" in said
     # The command that runs it alone names the scenario's file and the strategy.
@@ -199,3 +241,24 @@ def test_a_trial_that_raises_is_named_and_the_finished_ones_are_kept(tmp_path, m
     lines = (out / TABLE).read_text().splitlines()
     assert len(lines) == 2
     assert lines[1].startswith("all,0,")
+
+
+def test_a_batch_chunk_that_raises_is_named_with_its_trials(tmp_path, monkeypatch, capsys):
+    import twin.montecarlo.batch_trials
+    from twin.cli import main
+
+    class Broken:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def run(self):
+            raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(twin.montecarlo.batch_trials, "BatchRun", Broken)
+    out = tmp_path / "mc"
+    args = ["montecarlo", str(SMOKE), "--trials", "3", "--seed", "5", "--no-budget"]
+    assert main([*args, "--out", str(out)]) == 1
+    said = " ".join(capsys.readouterr().out.split())
+    assert "trials 0-2 of 'all' at the batch fidelity failed: LinAlgError: Singular" in said
+    assert "--resume continues" in said
+    assert (out / TABLE).read_text().count("\n") == 1  # the header, no trial

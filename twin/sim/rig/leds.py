@@ -188,12 +188,7 @@ class GeometricLedSensor(LedSensor):
             radius = self._radius[(child, k)]
             distance = float(np.linalg.norm(leds[k] - origin))
             margin = _focal(cam) * radius / distance
-            w, h = cam.image_size
-            inside = in_image(pixels[k : k + 1], cam.image_size)[0] and (
-                margin - 0.5 <= pixels[k, 0] <= w - 0.5 - margin
-                and margin - 0.5 <= pixels[k, 1] <= h - 0.5 - margin
-            )
-            if not inside:
+            if not in_image(pixels[k : k + 1], cam.image_size, margin)[0]:
                 failures.append(DetectionFailure.NOT_IN_VIEW.value)
                 continue
             if k in hidden:

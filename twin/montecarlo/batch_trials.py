@@ -1,0 +1,146 @@
+"""Monte-Carlo trials at the batch fidelity: chunks of trials run at once
+(:class:`twin.batch.execute.BatchRun`), each trial giving the rows of the trial table that
+a geometric trial gives (:data:`twin.montecarlo.trial.COLUMNS`).
+
+The plan is recorded once per run (:func:`twin.batch.plan.record_plan`) and shipped with
+every chunk; a chunk holds trials of one configuration (one noise source, or all).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from twin.batch.execute import BatchOutcome, BatchRun
+from twin.batch.plan import BatchPlan
+from twin.montecarlo.sources import isolate
+from twin.montecarlo.trial import TrialFailed, TrialResult, TrialSpec
+from twin.report.reading import planned_visits
+
+DEFAULT_CHUNK_SIZE = 200
+"""Trials one array holds at most by default: the hall's plan takes about 1 MB a trial at
+once, so a chunk stays within a few hundred MB."""
+
+BATCH_OMITS = (
+    "decisions taken again under noise (re-aims after a lost lock or a wrong prism, stops "
+    "given up because an LED fell out of view, fixes measured again after a failed "
+    "consistency test: such a trial keeps its estimate and counts a failure)",
+    "the faults of [faults] (scenarios with faults are refused)",
+    "the check shots at a child placed earlier (they only matter when it moved)",
+    "the tilt of a child on a tilted floor patch (its marker moves in the plane)",
+)
+"""What the batch fidelity leaves out; the geometric fidelity keeps it (``montecarlo.json``
+and the README say so too)."""
+
+
+@dataclass(frozen=True)
+class BatchChunk:
+    """Trials of one configuration run together.
+
+    Attributes:
+        plan: the campaign's plan. specs: the trials (one configuration).
+    """
+
+    plan: BatchPlan
+    specs: tuple[TrialSpec, ...]
+
+
+def default_chunk_size(trials: int, workers: int) -> int:
+    """Trials a chunk holds when the user did not say: as many as shares ``trials`` among
+    ``workers`` evenly, at most :data:`DEFAULT_CHUNK_SIZE`."""
+    return max(1, min(DEFAULT_CHUNK_SIZE, math.ceil(trials / max(workers, 1))))
+
+
+def chunks(plan: BatchPlan, specs: Sequence[TrialSpec], size: int) -> Iterator[BatchChunk]:
+    """``specs`` in chunks of at most ``size`` trials of one configuration, in order."""
+    by_config: dict[str, list[TrialSpec]] = {}
+    for spec in specs:
+        by_config.setdefault(spec.config, []).append(spec)
+    for group in by_config.values():
+        for start in range(0, len(group), size):
+            yield BatchChunk(plan, tuple(group[start : start + size]))
+
+
+def check_batch_scenario(plan_scenario: Any) -> None:
+    """Refuse what the batch fidelity cannot run.
+
+    Raises:
+        ValueError: a scenario that injects faults (the batch has no faults to inject).
+    """
+    faults = plan_scenario.faults
+    if faults.lost_lock_rate or faults.hidden_led_rate or faults.unreachable:
+        raise ValueError(
+            f"the batch fidelity injects no faults, and {plan_scenario.source or 'the scenario'} "
+            "sets [faults]; run it with --fidelity geometric"
+        )
+
+
+def run_batch_chunk(chunk: BatchChunk) -> list[TrialResult]:
+    """Run one chunk of trials at once; the rows of each, in the chunk's order."""
+    t0 = time.perf_counter()
+    specs = chunk.specs
+    config = specs[0].config
+    try:
+        noise = isolate(chunk.plan.scenario, config).noise
+        outcome = BatchRun(chunk.plan, [s.seed for s in specs], noise=noise).run()
+    except Exception as exc:
+        first, last = specs[0].trial, specs[-1].trial
+        raise TrialFailed(
+            f"trials {first}-{last} of {config!r} at the batch fidelity failed: "
+            f"{type(exc).__name__}: {exc}"
+        ) from exc
+    wall = (time.perf_counter() - t0) / len(specs)
+    return [TrialResult(spec, tuple(_rows(spec, outcome, k)), wall) for k, spec in enumerate(specs)]
+
+
+def _mm(value: float) -> float:
+    return 1e3 * float(value) if np.isfinite(value) else math.nan
+
+
+def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]]:
+    """The table rows of trial ``k`` of a batch (one per planned visit)."""
+    err = outcome.parent_error[k]
+    std = np.sqrt(np.diag(outcome.parent_covariance[k]))
+    trial_level = {
+        "parent_final_dx_mm": _mm(err[0]),
+        "parent_final_dy_mm": _mm(err[1]),
+        "parent_final_dz_mm": _mm(err[2]),
+        "parent_predicted_sx_mm": _mm(std[0]),
+        "parent_predicted_sy_mm": _mm(std[1]),
+        "parent_predicted_sz_mm": _mm(std[2]),
+        "parent_distance_m": float(outcome.distance[k]),
+        "failures": int(outcome.failures[k]),
+    }
+    rows = []
+    for (camera, visit), _ in planned_visits(spec.scenario):
+        v = outcome.calibrations.get((camera, visit))
+        made = v is not None and bool(v.calibrated[k])
+        rows.append(
+            {
+                "config": spec.config,
+                "trial": spec.trial,
+                "seed": spec.seed,
+                "camera": camera,
+                "visit": visit,
+                "calibrated": int(made),
+                "distance_travelled_m": float(v.distance[k]) if made else math.nan,
+                "points": int(v.points[k]) if made else 0,
+                "position_error_mm": _mm(v.position_error[k]) if made else math.nan,
+                "rotation_error_deg": math.degrees(v.rotation_error[k]) if made else math.nan,
+                "world_pixel_mean": float(v.world_pixel[k]) if made else math.nan,
+                "world_error_3d_mean_mm": _mm(v.world_3d[k]) if made else math.nan,
+                "local_pixel_mean": float(v.local_pixel[k]) if made else math.nan,
+                "local_error_3d_mean_mm": _mm(v.local_3d[k]) if made else math.nan,
+                "predicted_transfer_rms_mm": _mm(v.predicted_transfer[k]) if made else math.nan,
+                "predicted_calibration_rms_mm": (
+                    _mm(v.predicted_calibration[k]) if made else math.nan
+                ),
+                **trial_level,
+            }
+        )
+    return rows
