@@ -333,7 +333,7 @@ def _take_steps(fit: _Fit, steps: _Steps, kscale: float) -> None:
     fit.q[better], fit.res[better], fit.jac[better], fit.cost[better] = (
         q_new[better], res_new[better], jac_new[better], cost_new[better],
     )  # fmt: skip
-    fit.lam = np.where(better, fit.lam / 10.0, fit.lam * 10.0)
+    fit.lam = np.where(better, fit.lam / 10.0, np.maximum(fit.lam * 10.0, _LAMBDA_START))
     fit.near = better & (steps.gauss < _NEAR**2)
 
 
@@ -423,7 +423,7 @@ def calibrate_tsai_batch(
     image_size: tuple[int, int],
     start: TsaiCamera | ArrayLike,
     *,
-    max_iterations: int = 50,
+    max_iterations: int = 100,
     xtol: float = 1e-6,
     min_sigma_px: float = 1e-4,
 ) -> TsaiBatchResult:
