@@ -33,6 +33,10 @@ INVALID_PX = 1e6  # the residual of a point that does not project (as calib.tsai
 ROTATION_STEP = 1e-6  # rad: central-difference step of Euler angles against the rotvec
 _LAMBDA_START = 1e-6  # the damping of the column-scaled normal equations at the start
 _LAMBDA_STALL = 1e10  # a trial whose damping grows past this makes no progress: it stops
+# Below this reciprocal condition of the column-scaled J^T J (1e-7 for 7 points of the
+# paper's cameras) the rounding of J^T J (~1e-16 of its largest eigenvalue) reaches 1e-4
+# of the smallest: the data do not determine some parameters, the covariance is NaN.
+RCOND_MIN = 1e-12
 _NEAR = 0.3  # standard deviations from the minimum: the secant Hessian is used nearer
 # A step is taken unless it raises the residual sum of squares by more than this relative
 # amount: the rounding of the sum (~1e-13 relative) hides the last decreases near the
@@ -56,7 +60,8 @@ class TsaiBatchResult:
         sigma_px: (T,) residual standard deviation sqrt(|r|^2 / dof), px.
         dof: degrees of freedom of each fit, 2N - 11.
         converged: (T,) the trial met the convergence test within the iterations allowed,
-            and every point projects in front of its camera.
+            every point projects in front of its camera, and the data determine all the
+            parameters (else the covariances are NaN).
         iterations: (T,) Levenberg-Marquardt iterations of each trial (steps tried).
         world2cam_r: (T, 3, 3) rotations from the world to the camera frame.
         image_size: (width, height), px.
@@ -387,12 +392,16 @@ def _levenberg_marquardt(
 
 
 def _unit_covariance(normal: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(J^T J)^-1 of a stack (T, P, P), inverted with its columns scaled to unit norm;
-    NaN where singular."""
+    """(J^T J)^-1 of a stack (T, P, P), inverted with its columns scaled to unit norm; NaN
+    where the scaled matrix is singular: its reciprocal condition below ``RCOND_MIN``."""
     d = np.sqrt(np.diagonal(normal, axis1=1, axis2=2))
     d = np.where(d > 0.0, d, 1.0)
     dd = d[:, :, None] * d[:, None, :]
-    return _solve(normal / dd, np.broadcast_to(np.eye(normal.shape[1]), normal.shape)) / dd
+    scaled = normal / dd
+    eig = np.linalg.eigvalsh(scaled)
+    regular = eig[:, 0] > RCOND_MIN * eig[:, -1]
+    inv = _solve(scaled, np.broadcast_to(np.eye(normal.shape[1]), normal.shape)) / dd
+    return np.where(regular[:, None, None], inv, np.nan)
 
 
 def _euler(rotvecs: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -469,7 +478,7 @@ def calibrate_tsai_batch(
         covariance_q=cov_q,
         sigma_px=np.sqrt(sigma2),
         dof=dof,
-        converged=sol.converged & (z[:, :, 0] > 0).all(axis=1),
+        converged=sol.converged & (z[:, :, 0] > 0).all(axis=1) & np.isfinite(cov_q[:, 0, 0]),
         iterations=sol.iterations,
         world2cam_r=rot,
         image_size=size,

@@ -131,6 +131,19 @@ def test_too_few_iterations_are_reported_as_not_converged() -> None:
     assert res.iterations[0] == 1
 
 
+def test_a_degenerate_trial_is_flagged_and_leaves_the_others_alone(visit, batch) -> None:
+    # Trial 1 sees one point 70 times: its data determine 2 of the 11 parameters.
+    cam, start, points, pixels = visit
+    pts, uv = points[:3].copy(), pixels[:3].copy()
+    pts[1], uv[1] = pts[1, 0], uv[1, 0]
+    res = calibrate_tsai_batch(pts, uv, cam.image_size, start)
+    assert_array_equal(res.converged, [True, False, True])
+    assert np.isnan(res.covariance[1]).all()
+    for k in (0, 2):
+        assert_array_equal(res.q[k], batch.q[k])
+        assert_array_equal(res.covariance[k], batch.covariance[k])
+
+
 @pytest.mark.parametrize(
     ("points_shape", "pixels_shape", "match"),
     [
