@@ -5,11 +5,14 @@ The data are a Monte-Carlo visit of the paper's camera 1: 70 LED points, each tr
 its own 0.3 px pixel noise and 1.5 mm noise on the 3D points; the batch starts every trial
 from the noise-free calibration of the visit (as the Monte-Carlo batch does). The
 baseline, calibrate_tsai, also runs its closed-form stages. BLAS runs on one thread (set
-before numpy is imported), so both use one core. Also printed: the largest difference
-between the two solutions over the baseline's trials, in the baseline's standard
-deviations.
+before numpy is imported), so both use one core. Also printed: the minor page faults
+per batch (memory glibc's allocator returned to the system and faults in again; the
+batch's ``block`` keeps them low), and the largest difference between the two solutions
+over the baseline's trials, in the baseline's standard deviations. ``--no-trim`` runs
+again with glibc told to keep its memory (MALLOC_TRIM_THRESHOLD_, MALLOC_MMAP_THRESHOLD_).
 
-Run: ``.venv/bin/python benchmarks/bench_tsai_batch.py [--seconds S] [--baseline N]``
+Run: ``.venv/bin/python benchmarks/bench_tsai_batch.py [--seconds S] [--baseline N]
+[--block B] [--no-trim]``
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
+import resource
+import sys
 import time
 
 import numpy as np
@@ -46,17 +51,27 @@ def visit(trials: int, seed: int) -> tuple:
     return cam, start, points, pixels
 
 
-def timed(fn, seconds: float) -> tuple[float, float, object]:
-    """Median wall and CPU time of repeated calls for about ``seconds``; the last result."""
+NO_TRIM = {"MALLOC_TRIM_THRESHOLD_": "1000000000", "MALLOC_MMAP_THRESHOLD_": "1000000000"}
+
+
+def _faults() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+
+def timed(fn, seconds: float) -> tuple[float, float, float, object]:
+    """Median wall and CPU time and mean minor page faults of repeated calls for about
+    ``seconds``; the last result."""
     result = fn()  # warm-up
     walls, cpus = [], []
+    f0 = _faults()
     t_end = time.perf_counter() + seconds
     while time.perf_counter() < t_end or len(walls) < 3:
         w0, c0 = time.perf_counter(), time.process_time()
         result = fn()
         walls.append(time.perf_counter() - w0)
         cpus.append(time.process_time() - c0)
-    return float(np.median(walls)), float(np.median(cpus)), result
+    faults = (_faults() - f0) / len(walls)
+    return float(np.median(walls)), float(np.median(cpus)), faults, result
 
 
 def main() -> None:
@@ -64,8 +79,12 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=2.0, help="time per setting, s")
     ap.add_argument("--baseline", type=int, default=100, help="calibrate_tsai data sets")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--block", type=int, default=64, help="trials fitted together")
+    ap.add_argument("--no-trim", action="store_true", help="glibc keeps its memory")
     args = ap.parse_args()
-    console = Console(width=120)
+    if args.no_trim and any(os.environ.get(k) != v for k, v in NO_TRIM.items()):
+        os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, **NO_TRIM})
+    console = Console(width=140)
     load_before = os.getloadavg()
     cam, start, points, pixels = visit(max(SIZES), args.seed)
     size = cam.image_size
@@ -78,22 +97,24 @@ def main() -> None:
 
     table = Table(
         title=f"calibrate_tsai_batch: camera 1, {N_POINTS} points, {SIGMA_PX} px and "
-        f"{SIGMA_M * 1e3:g} mm noise"
+        f"{SIGMA_M * 1e3:g} mm noise, blocks of {args.block}"
+        + (", glibc not trimming" if args.no_trim else "")
     )
     for col in ("trials T", "ms / batch", "CPU ms / batch", "calibrations / s", "vs one at a time",
-                "iterations (median, max)", "converged"):  # fmt: skip
+                "page faults / batch", "iterations (median, max)", "converged"):  # fmt: skip
         table.add_column(col, justify="right")
     table.add_row(
-        "calibrate_tsai x1", f"{base_wall * 1e3:.2f}", f"{base_cpu * 1e3:.2f}",
-        f"{base_rate:,.0f}", "1.0", "-", "-",
+        "calibrate_tsai", f"{base_wall * 1e3:.2f}", f"{base_cpu * 1e3:.2f}",
+        f"{base_rate:,.0f}", "1.0", "-", "-", "-",
     )  # fmt: skip
     for n in SIZES:
-        wall, cpu, res = timed(
-            lambda n=n: calibrate_tsai_batch(points[:n], pixels[:n], size, start), args.seconds
+        wall, cpu, faults, res = timed(
+            lambda n=n: calibrate_tsai_batch(points[:n], pixels[:n], size, start, block=args.block),
+            args.seconds,
         )
         table.add_row(
             str(n), f"{wall * 1e3:.2f}", f"{cpu * 1e3:.2f}", f"{n / wall:,.0f}",
-            f"{n / wall / base_rate:.1f}",
+            f"{n / wall / base_rate:.1f}", f"{faults:,.0f}",
             f"{np.median(res.iterations):.0f}, {res.iterations.max()}",
             f"{res.converged.mean():.1%}",
         )  # fmt: skip

@@ -206,7 +206,8 @@ def project_tsai_jacobian_batch(
     # d(xd, yd) / d(xu, yu) = s I + g (xu, yu)(xu, yu)^T: symmetric
     g = 2.0 * kb * ds_dt
     a11, a12, a22 = s + g * xu * xu, g * xu * yu, s + g * yu * yu
-    jac = np.zeros((n_t, n, 2, 11))
+    jac = np.empty((n_t, n, 2, 11))
+    jac[..., 1, 1] = jac[..., 0, 2] = jac[..., 1, 3] = 0.0
     jac[..., 0, 0] = sxb * (a11 * xn + a12 * yn)
     jac[..., 1, 0] = a12 * xn + a22 * yn
     jac[..., 0, 1] = 1.0

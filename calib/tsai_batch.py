@@ -277,6 +277,13 @@ class _Solution:
     converged: NDArray[np.bool_]
     iterations: NDArray[np.int_]
 
+    @classmethod
+    def concatenate(cls, parts: list[_Solution]) -> _Solution:
+        """The solutions of consecutive blocks of trials as one."""
+        return cls(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in cls.__dataclass_fields__)
+        )
+
     def record(self, fit: _Fit, rows: NDArray[np.bool_], normal: NDArray, done: NDArray) -> None:
         """Record the trials of these rows of ``fit`` (normal: their J^T J)."""
         i = fit.index[rows]
@@ -435,6 +442,7 @@ def calibrate_tsai_batch(
     max_iterations: int = 100,
     xtol: float = 1e-6,
     min_sigma_px: float = 1e-4,
+    block: int = 64,
 ) -> TsaiBatchResult:
     """Calibrate T data sets with Tsai's model at once, each from a start close to it.
 
@@ -454,6 +462,11 @@ def calibrate_tsai_batch(
             local model).
         min_sigma_px: residual standard deviations below this (noise-free data) count as
             this in the convergence test, px.
+        block: trials fitted together; the results do not depend on it. Blocks of 64
+            keep the temporaries small enough that glibc's allocator reuses them instead of
+            returning them to the system and faulting them in again: 1.2 times the rate
+            of 1000 at once (with the allocator told not to trim, blocks of 256-512 are
+            fastest, 1.5 times).
 
     Returns:
         The T calibrations; ``converged`` tells which met the test.
@@ -461,8 +474,7 @@ def calibrate_tsai_batch(
     Each trial converges to the minimum of the basin its start lies in. Where the geometry
     is weak (20 points at 0.3 px: cx uncertain by 20-40 px) a data set can have several
     minima, and ``calibrate_tsai``, which starts from its closed-form stages, may find
-    another one. Memory: about 70 MB at the peak for T = 1000 trials of N = 70 points,
-    growing as T N.
+    another one.
     """
     size = check_image_size(image_size)
     p3, uv = _check_data(points, pixels)
@@ -470,7 +482,11 @@ def calibrate_tsai_batch(
     q0 = _start(start, size, n_t)
     kscale = _kappa_scale(size)
     dof = 2 * n - N_TSAI
-    sol = _levenberg_marquardt(q0, p3, uv, kscale, max_iterations, xtol, min_sigma_px)
+    if block < 1:
+        raise ValueError(f"block must be at least 1, got {block}")
+    blocks = [slice(i, i + block) for i in range(0, n_t, block)]
+    fit = (kscale, max_iterations, xtol, min_sigma_px)
+    sol = _Solution.concatenate([_levenberg_marquardt(q0[b], p3[b], uv[b], *fit) for b in blocks])
     q = sol.q
     sigma2 = sol.cost / dof
     cov_q = sigma2[:, None, None] * _unit_covariance(sol.normal)

@@ -83,8 +83,10 @@ def test_trial_k_of_a_batch_is_a_batch_of_trial_k_bit_for_bit(visit, batch) -> N
         for name in (*fields, "iterations", "world2cam_r"):
             assert_array_equal(getattr(batch, name)[k], getattr(one, name)[0], err_msg=name)
     backwards = calibrate_tsai_batch(points[::-1], pixels[::-1], cam.image_size, start)
+    in_blocks = calibrate_tsai_batch(points, pixels, cam.image_size, start, block=7)
     for name in fields:
         assert_array_equal(getattr(backwards, name)[::-1], getattr(batch, name), err_msg=name)
+        assert_array_equal(getattr(in_blocks, name), getattr(batch, name), err_msg=name)
 
 
 def test_noise_free_data_recover_the_camera_exactly() -> None:
