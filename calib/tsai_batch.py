@@ -6,9 +6,9 @@ arrays over Monte-Carlo trials.
 sets of the same size, each from a given start (a Monte-Carlo batch passes the noise-free
 calibration of its visit), by Levenberg-Marquardt on the same reprojection residual, with
 the analytic Jacobian: (T, 2N, 11) Jacobians, (T, 11, 11) normal equations solved as a
-stack, a damping and a convergence test per trial. A trial that has converged leaves the
-computation; no arithmetic mixes trials, so trial k of a batch is bit for bit a batch of
-trial k alone.
+stack, a damping and a convergence test per trial, in blocks of trials. A trial that has
+converged leaves the computation; no arithmetic mixes trials, so trial k of a batch is bit
+for bit a batch of trial k alone.
 
 :func:`covariance_from_point_errors` predicts, to first order, the scatter of the
 parameters caused by errors in the 3D points themselves.
