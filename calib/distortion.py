@@ -23,18 +23,22 @@ from numpy.typing import NDArray
 _SERIES_LIMIT = 1e-3
 
 
-def undistort(xy_d: NDArray[np.float64], kappa1: float) -> NDArray[np.float64]:
+def undistort(
+    xy_d: NDArray[np.float64], kappa1: float | NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Distorted to undistorted image coordinates.
 
     Args:
-        xy_d: (N, 2) distorted coordinates, px, relative to the image centre (before sx).
-        kappa1: Tsai's radial distortion coefficient, 1/px^2.
+        xy_d: (N, 2) distorted coordinates, px, relative to the image centre (before sx);
+            or (..., N, 2) for several cameras at once.
+        kappa1: Tsai's radial distortion coefficient, 1/px^2: a float, or an array that
+            broadcasts against the leading shape of ``xy_d`` ((T, 1) for (T, N, 2)).
 
     Returns:
-        (N, 2) undistorted coordinates, px.
+        undistorted coordinates, px, the shape of ``xy_d``.
     """
-    r2 = np.sum(xy_d * xy_d, axis=-1, keepdims=True)
-    return xy_d * (1.0 + kappa1 * r2)
+    r2 = np.sum(xy_d * xy_d, axis=-1)
+    return xy_d * (1.0 + kappa1 * r2)[..., None]
 
 
 def distortion_scale(t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -84,15 +88,18 @@ def distortion_scale(t: NDArray[np.float64]) -> NDArray[np.float64]:
     return s
 
 
-def distort(xy_u: NDArray[np.float64], kappa1: float) -> NDArray[np.float64]:
+def distort(xy_u: NDArray[np.float64], kappa1: float | NDArray[np.float64]) -> NDArray[np.float64]:
     """Undistorted to distorted image coordinates, the exact inverse of :func:`undistort`.
 
     Args:
-        xy_u: (N, 2) undistorted coordinates, px, relative to the image centre (before sx).
-        kappa1: Tsai's radial distortion coefficient, 1/px^2.
+        xy_u: (N, 2) undistorted coordinates, px, relative to the image centre (before sx);
+            or (..., N, 2) for several cameras at once.
+        kappa1: Tsai's radial distortion coefficient, 1/px^2: a float, or an array that
+            broadcasts against the leading shape of ``xy_u`` ((T, 1) for (T, N, 2)).
 
     Returns:
-        (N, 2) distorted coordinates, px. Rows beyond the fold of a negative kappa1 are NaN.
+        distorted coordinates, px, the shape of ``xy_u``. Rows beyond the fold of a
+        negative kappa1 are NaN.
     """
     r2 = np.sum(xy_u * xy_u, axis=-1)
     s = distortion_scale(kappa1 * r2)

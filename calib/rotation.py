@@ -5,7 +5,8 @@ the instruments, positioning and the simulator all use these), built on
 - :func:`skew`, :func:`rot_z`, :func:`rot_z_derivative`, :func:`wrap_angle`: small
   helpers over arrays of any leading shape.
 - Conversions between representations follow the ``a2b`` pattern: :func:`euler2matrix`,
-  :func:`matrix2euler`, :func:`rotvec2matrix`, :func:`matrix2rotvec`.
+  :func:`matrix2euler`, :func:`rotvec2matrix`, :func:`matrix2rotvec`;
+  :func:`rotvec2matrix_batch` and :func:`right_jacobian_batch` take stacks of vectors.
 
 Tsai's convention (and the paper's Table II) gives the world-to-camera rotation as angles
 (rx, ry, rz) about the fixed world axes X, Y, Z applied in that order:
@@ -114,6 +115,42 @@ def right_jacobian(rotvec: ArrayLike) -> NDArray[np.float64]:
         a = (1.0 - np.cos(theta)) / theta2
         b = (theta - np.sin(theta)) / (theta2 * theta)
     return np.eye(3) - a * k + b * (k @ k)
+
+
+def rotvec2matrix_batch(rotvecs: ArrayLike) -> NDArray[np.float64]:
+    """(..., 3) rotation vectors, rad -> (..., 3, 3) rotation matrices (Rodrigues' formula).
+
+    The formula of :func:`rotvec2matrix` elementwise, with ``K^2 = w w^T - theta^2 I``; each
+    matrix depends on its own vector only.
+    """
+    w = np.asarray(rotvecs, dtype=float)
+    theta2 = np.sum(w * w, axis=-1)
+    near = theta2 < 1e-12
+    theta = np.sqrt(np.where(near, 1.0, theta2))
+    a = np.where(near, 1.0 - theta2 / 6.0, np.sin(theta) / theta)
+    b = np.where(near, 0.5 - theta2 / 24.0, (1.0 - np.cos(theta)) / np.where(near, 1.0, theta2))
+    return _identity_plus(w, theta2, a, b)
+
+
+def right_jacobian_batch(rotvecs: ArrayLike) -> NDArray[np.float64]:
+    """(..., 3) rotation vectors, rad -> (..., 3, 3) right Jacobians of SO(3), elementwise
+    (see :func:`right_jacobian`)."""
+    w = np.asarray(rotvecs, dtype=float)
+    theta2 = np.sum(w * w, axis=-1)
+    near = theta2 < 1e-12
+    t2 = np.where(near, 1.0, theta2)
+    theta = np.sqrt(t2)
+    a = np.where(near, 0.5 - theta2 / 24.0, (1.0 - np.cos(theta)) / t2)
+    b = np.where(near, 1.0 / 6.0 - theta2 / 120.0, (theta - np.sin(theta)) / (t2 * theta))
+    return _identity_plus(w, theta2, -a, b)
+
+
+def _identity_plus(
+    w: NDArray[np.float64], theta2: NDArray[np.float64], a: NDArray[np.float64], b: NDArray
+) -> NDArray[np.float64]:
+    """I + a [w]x + b [w]x^2 for (..., 3) vectors w and (...,) coefficients a, b."""
+    k2 = w[..., :, None] * w[..., None, :] - theta2[..., None, None] * np.eye(3)
+    return np.eye(3) + a[..., None, None] * skew(w) + b[..., None, None] * k2
 
 
 def matrix2rotvec(rotation: ArrayLike) -> NDArray[np.float64]:
