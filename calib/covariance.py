@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 
 def central_jacobian(
@@ -95,3 +95,32 @@ def propagate_covariance(
     """
     g = central_jacobian(transform, x, steps, angle_mask)
     return g @ cov @ g.T
+
+
+def own_position_variance(
+    position_std: ArrayLike,
+    sigma_px: ArrayLike,
+    pixel_noise_px: float | None,
+    points_variance: ArrayLike,
+) -> NDArray[np.float64]:
+    """The variance (trace, m^2) of a calibrated camera's centre from its own data: the
+    pixel noise and the errors of its points.
+
+    Tsai's standard deviations are the fit's residual sigma times its unit covariance. The
+    residuals hold the points' errors too, which ``points_variance`` counts as they are
+    (shared by the LEDs of a stop), so the pixel part takes the detector's noise
+    ``pixel_noise_px`` in place of the residual sigma; without it (None) Tsai's
+    standard deviations stand as they are, an upper bound of the pixel part.
+
+    Args:
+        position_std: (..., 3) Tsai's standard deviations of the centre, m.
+        sigma_px: (...,) the fit's residual standard deviation, px.
+        pixel_noise_px: the detector's pixel noise, px, or None.
+        points_variance: (...,) the points' part, m^2
+            (:func:`calib.tsai_batch.position_covariance_from_blocks`).
+    """
+    pixel = np.sum(np.asarray(position_std, dtype=float) ** 2, axis=-1)
+    if pixel_noise_px is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pixel = pixel * (pixel_noise_px / np.asarray(sigma_px, dtype=float)) ** 2
+    return pixel + np.asarray(points_variance, dtype=float)

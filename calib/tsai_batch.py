@@ -516,6 +516,62 @@ def _internal(cameras: TsaiCameras, kscale: float) -> NDArray[np.float64]:
     return np.concatenate([np.stack(intrinsics, axis=1), rotvecs, cameras.position], axis=1)
 
 
+def _gain(
+    cams: TsaiCameras, p3: NDArray[np.float64], kscale: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """H = (J^T J)^-1 J^T K (T, 11, 3N) of the internal parameters, and (J^T J)^-1."""
+    n_t, n = p3.shape[:2]
+    q = _internal(cams, kscale)
+    _, jac = _residuals_and_jacobian(q, p3, np.zeros((n_t, n, 2)), kscale)
+    a, _ = _normal_equations(jac, np.zeros(jac.shape[:2]))
+    inv_a = _unit_covariance(a)
+    blocks = jac.reshape(n_t, n, 2, N_TSAI)
+    jtk = np.einsum("tnka,tnkb->tanb", blocks, blocks[..., 8:11]).reshape(n_t, N_TSAI, 3 * n)
+    return inv_a @ jtk, inv_a
+
+
+def position_covariance_from_blocks(
+    cameras: TsaiCameras,
+    points: ArrayLike,
+    blocks: ArrayLike,
+    columns: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Covariance of T calibrated optical centres from errors of their points, where the
+    points' joint covariance is block-diagonal (the LEDs of one stop share a block).
+
+    The position part of :func:`covariance_from_point_errors` without forming the joint
+    matrix: ``sum_s H_s B_s H_s^T`` over the blocks.
+
+    Args:
+        cameras: T cameras (where the derivative is taken: the calibrated ones).
+        points: (T, n, 3) each calibration's world points, m.
+        blocks: (T, S, k, k) the blocks of the points' joint covariance, m^2, in the
+            order x0, y0, z0, x1, ... of a layout of S k / 3 points.
+        columns: (T, 3n) where each point coordinate sits in that layout (default: the
+            first 3n, in order; a trial that lost points keeps the layout of the rest).
+
+    Returns:
+        (T, 3, 3) covariance of the optical centres, m^2.
+    """
+    p3 = np.ascontiguousarray(np.asarray(points, dtype=float))
+    b = np.asarray(blocks, dtype=float)
+    n_t, n = p3.shape[:2]
+    if p3.shape != (len(cameras), n, 3) or b.ndim != 4 or b.shape[0] != n_t:
+        raise ValueError(
+            f"points must be ({len(cameras)}, n, 3) and blocks ({len(cameras)}, S, k, k), "
+            f"got {p3.shape} and {b.shape}"
+        )
+    n_blocks, k = b.shape[1:3]
+    cols = np.broadcast_to(np.arange(3 * n) if columns is None else columns, (n_t, 3 * n))
+    if n_blocks * k < 3 * n or cols.max(initial=0) >= n_blocks * k:
+        raise ValueError(f"{n_blocks} blocks of {k} rows cannot hold {n} points")
+    h, _ = _gain(cameras, p3, _kappa_scale(cameras.image_size))
+    full = np.zeros((n_t, 3, n_blocks * k))
+    full[np.arange(n_t)[:, None, None], np.arange(3)[None, :, None], cols[:, None, :]] = h[:, 8:11]
+    hs = full.reshape(n_t, 3, n_blocks, k)
+    return np.einsum("tasj,tbsj->tab", np.einsum("tasi,tsij->tasj", hs, b), hs)
+
+
 def covariance_from_point_errors(
     cameras: TsaiCamera | TsaiCameras,
     points: ArrayLike,
@@ -562,12 +618,7 @@ def covariance_from_point_errors(
         raise ValueError(f"points_covariance must have shape ({3 * n}, {3 * n}), got {cov_p.shape}")
     kscale = _kappa_scale(cams.image_size)
     q = _internal(cams, kscale)
-    _, jac = _residuals_and_jacobian(q, p3, np.zeros((n_t, n, 2)), kscale)
-    a, _ = _normal_equations(jac, np.zeros(jac.shape[:2]))
-    inv_a = _unit_covariance(a)
-    blocks = jac.reshape(n_t, n, 2, N_TSAI)
-    jtk = np.einsum("tnka,tnkb->tanb", blocks, blocks[..., 8:11]).reshape(n_t, N_TSAI, 3 * n)
-    h = inv_a @ jtk
+    h, inv_a = _gain(cams, p3, kscale)
     sigma2 = np.broadcast_to(np.asarray(sigma_px, dtype=float) ** 2, (n_t,))
     cov_q = h @ cov_p @ np.swapaxes(h, 1, 2) + sigma2[:, None, None] * inv_a
     g = _reporting_jacobian(q, kscale)

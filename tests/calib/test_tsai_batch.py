@@ -11,7 +11,12 @@ from calib.camera_batch import TsaiCameras
 from calib.rotation import euler2matrix
 from calib.synthetic import led_points, paper_camera
 from calib.tsai import TSAI_PARAMETERS, _pack, predicted_covariance
-from calib.tsai_batch import TsaiBatchResult, calibrate_tsai_batch, covariance_from_point_errors
+from calib.tsai_batch import (
+    TsaiBatchResult,
+    calibrate_tsai_batch,
+    covariance_from_point_errors,
+    position_covariance_from_blocks,
+)
 
 TRIALS = 50
 
@@ -225,3 +230,28 @@ def test_point_error_covariance_adds_the_pixel_noise_bound() -> None:
     assert_allclose(both[0], points_only, rtol=1e-12)
     pixel_part = both[1] - points_only
     assert_allclose(np.diag(pixel_part), np.diag(predicted_covariance(cam, pts, 0.3)), rtol=1e-6)
+
+
+def test_block_covariance_is_the_joint_one_also_for_trials_that_lost_points() -> None:
+    # Stops of four LEDs with full 12 x 12 blocks (correlated within a stop). Trial 0 keeps
+    # all 40 points; trial 1 lost its third stop and keeps the other 36 in the same layout:
+    # both equal the position block of the joint covariance of the points they kept.
+    cam = paper_camera(2)
+    rng = np.random.default_rng(9)
+    pts = led_points(cam, 40, rng)
+    factors = rng.normal(0.0, 1e-3, (10, 12, 6))
+    blocks = factors @ np.swapaxes(factors, 1, 2)  # (10, 12, 12), rank 6 as a marker's
+    joint = np.zeros((120, 120))
+    for s in range(10):
+        joint[12 * s : 12 * s + 12, 12 * s : 12 * s + 12] = blocks[s]
+    kept = np.ones(40, dtype=bool)
+    kept[8:12] = False
+    cols = (3 * np.flatnonzero(kept)[:, None] + np.arange(3)).ravel()
+    cams = TsaiCameras.from_cameras([cam])
+    full = position_covariance_from_blocks(cams, pts[None], blocks[None])
+    assert_allclose(full[0], covariance_from_point_errors(cam, pts, joint)[8:11, 8:11], rtol=1e-10)
+    lost = position_covariance_from_blocks(cams, pts[kept][None], blocks[None], cols[None])
+    expected = covariance_from_point_errors(cam, pts[kept], joint[np.ix_(cols, cols)])
+    assert_allclose(lost[0], expected[8:11, 8:11], rtol=1e-10)
+    with pytest.raises(ValueError, match="cannot hold 40 points"):
+        position_covariance_from_blocks(cams, pts[None], blocks[None, :9])

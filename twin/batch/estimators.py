@@ -19,7 +19,7 @@ the reference the vectorised estimators are held to.
 from __future__ import annotations
 
 import abc
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +27,9 @@ from numpy.typing import NDArray
 
 from calib import calibrate_tsai, evaluate
 from calib.camera import TsaiCamera
-from calib.rotation import rotation_angle_between
+from calib.camera_batch import TsaiCameras
+from calib.metrics_batch import pose_errors
+from calib.tsai_batch import covariance_from_point_errors
 from twin.instruments.consistency import chi2_threshold
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import MARKER_DOF, MarkerPose, cube_centroid, fit_marker_pose
@@ -35,6 +37,7 @@ from twin.instruments.marker_pose import led_positions as scalar_led_positions
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import polar2cartesian
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.localization.input_checks_batch import block_diagonal
 from twin.localization.observation import ChildObservation
 from twin.localization.sequence import CpsSequence
 
@@ -111,22 +114,46 @@ class Calibrations:
     """A camera calibrated in T trials.
 
     Attributes:
-        cameras: the calibrated cameras (None where a trial's calibration failed).
+        cameras: the T calibrated cameras (a trial whose calibration failed holds the
+            start camera: see ``calibrated``).
         position: (T, 3) optical centres in W, m (NaN where failed).
-        position_std: (T, 3) their standard deviations, m.
+        position_std: (T, 3) their standard deviations from Tsai's covariance, m (the
+            fit's residual standard deviation times the unit covariance).
+        sigma_px: (T,) the fit's residual standard deviation, px.
         calibrated: (T,) whether each trial's calibration succeeded.
+        kept: (T, N) which points each trial measured (:func:`found`).
     """
 
-    cameras: tuple[TsaiCamera | None, ...]
+    cameras: TsaiCameras
     position: NDArray[np.float64]
     position_std: NDArray[np.float64]
+    sigma_px: NDArray[np.float64]
     calibrated: NDArray[np.bool_]
+    kept: NDArray[np.bool_]
 
 
 def found(points: NDArray[np.float64], pixels: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """(N,) which of (N, 3) points and (N, 2) pixels a trial measured (the rest are NaN:
-    stops it gave up)."""
-    return np.isfinite(points).all(axis=1) & np.isfinite(pixels).all(axis=1)
+    """(..., N) which of (..., N, 3) points and (..., N, 2) pixels a trial measured (the
+    rest are NaN: stops it gave up)."""
+    return np.isfinite(points).all(axis=-1) & np.isfinite(pixels).all(axis=-1)
+
+
+def by_count(kept: NDArray[np.bool_]) -> Iterator[tuple[NDArray[np.intp], NDArray[np.intp]]]:
+    """The trials of a (T, N) mask grouped by how many points they kept.
+
+    Yields:
+        ``(trials, rows)``: (G,) trial indices and (G, n) the indices of their n kept
+        points, in order (``points[trials[:, None], rows]`` is their (G, n, 3) data).
+    """
+    counts = kept.sum(axis=1)
+    for n in np.unique(counts):
+        trials = np.flatnonzero(counts == n)
+        yield trials, np.nonzero(kept[trials])[1].reshape(len(trials), int(n))
+
+
+def coordinate_rows(rows: NDArray[np.intp]) -> NDArray[np.intp]:
+    """(G, n) point indices -> (G, 3n) their x, y, z rows of a (3N, 3N) covariance."""
+    return (3 * rows[..., None] + np.arange(3)).reshape(len(rows), -1)
 
 
 class Estimators(abc.ABC):
@@ -177,18 +204,31 @@ class Estimators(abc.ABC):
         """(T,) mean pixel error, px, and (T,) mean 3D error, m, of each trial's camera on
         its (T, M, 3) points and (T, M, 2) pixels (NaN where not calibrated)."""
 
+    @abc.abstractmethod
+    def points_effect(
+        self,
+        calibrations: Calibrations,
+        points: NDArray[np.float64],
+        stops: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
+        """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of
+        its (T, n, 3) points (NaN where not calibrated), to first order at the calibrated
+        camera (:func:`calib.tsai_batch.covariance_from_point_errors`).
+
+        The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its
+        LEDs share the marker's measured pose); rows past 3n are not in the data."""
+
     def truth_errors(
         self, calibrations: Calibrations, truth: TsaiCamera
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(T,) position error, m, and (T,) rotation error, rad, against the true camera."""
-        pos = np.linalg.norm(calibrations.position - truth.position, axis=1)
-        rot = np.array(
-            [
-                np.nan if c is None else rotation_angle_between(c.world2cam_r, truth.world2cam_r)
-                for c in calibrations.cameras
-            ]
+        """(T,) position error, m, and (T,) rotation error, rad, against the true camera
+        (NaN where not calibrated)."""
+        errors = pose_errors(calibrations.cameras, truth)
+        failed = ~calibrations.calibrated
+        return (
+            np.where(failed, np.nan, errors.position_m),
+            np.where(failed, np.nan, errors.rotation_rad),
         )
-        return pos, rot
 
 
 # -- the reference: the campaign's scalar code, trial by trial -------------------------------------
@@ -275,39 +315,45 @@ class TrialByTrial(Estimators):
         return np.array(leds), np.array(covs)
 
     def calibrate(self, points, pixels, image_size, start) -> Calibrations:
-        cameras: list[TsaiCamera | None] = []
-        position, std = [], []
+        kept = found(points, pixels)
+        cameras: list[TsaiCamera] = []
+        position = np.full((len(points), 3), np.nan)
+        std = np.full((len(points), 3), np.nan)
+        sigma = np.full(len(points), np.nan)
         for k in range(len(points)):
-            kept = found(points[k], pixels[k])
             try:
-                result = calibrate_tsai(points[k][kept], pixels[k][kept], image_size)
+                result = calibrate_tsai(points[k][kept[k]], pixels[k][kept[k]], image_size)
             except ValueError:
-                cameras.append(None)
-                position.append(np.full(3, np.nan))
-                std.append(np.full(3, np.nan))
+                cameras.append(start)
                 continue
             cam = result.camera
             assert isinstance(cam, TsaiCamera)
             cameras.append(cam)
-            position.append(cam.position)
+            position[k] = cam.position
             s = result.std_by_name
-            std.append(np.array([s["x"], s["y"], s["z"]]))
-        return Calibrations(
-            tuple(cameras),
-            np.array(position),
-            np.array(std),
-            np.array([c is not None for c in cameras]),
-        )
+            std[k] = (s["x"], s["y"], s["z"])
+            sigma[k] = result.sigma_px
+        made = np.isfinite(position).all(axis=1)
+        return Calibrations(TsaiCameras.from_cameras(cameras), position, std, sigma, made, kept)
 
     def evaluate(self, calibrations, points, pixels):
-        pix, err = [], []
-        for k, cam in enumerate(calibrations.cameras):
-            kept = found(points[k], pixels[k])
-            if cam is None or not kept.any():
-                pix.append(np.nan)
-                err.append(np.nan)
-                continue
-            m = evaluate(cam, points[k][kept], pixels[k][kept])
-            pix.append(m.pixel.mean)
-            err.append(m.error_3d.mean)
-        return np.array(pix), np.array(err)
+        pix = np.full(len(points), np.nan)
+        err = np.full(len(points), np.nan)
+        kept = found(points, pixels)
+        for k in np.flatnonzero(calibrations.calibrated & kept.any(axis=1)):
+            m = evaluate(calibrations.cameras.camera(k), points[k][kept[k]], pixels[k][kept[k]])
+            pix[k], err[k] = m.pixel.mean, m.error_3d.mean
+        return pix, err
+
+    def points_effect(self, calibrations, points, stops):
+        out = np.full((len(points), 3, 3), np.nan)
+        n = points.shape[1]
+        for k in np.flatnonzero(calibrations.calibrated):
+            rows = np.flatnonzero(calibrations.kept[k])
+            cols = coordinate_rows(rows[None])[0]
+            joint = block_diagonal(stops[k : k + 1])[0, : 3 * n, : 3 * n]
+            cov = covariance_from_point_errors(
+                calibrations.cameras.camera(k), points[k][rows], joint[np.ix_(cols, cols)]
+            )
+            out[k] = cov[8:11, 8:11]
+        return out

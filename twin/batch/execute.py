@@ -34,9 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import TsaiCamera
+from calib.covariance import own_position_variance
 from twin.batch.estimators import (
-    Calibrations,
     CpsStates,
     Estimators,
     Observations,
@@ -215,6 +214,7 @@ class VisitOutcome:
 class _DataSet:
     points: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 3) each
     pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 2) each
+    covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, 3N_led)
     size: int | None = None
 
     def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -225,6 +225,11 @@ class _DataSet:
         pix = np.concatenate(self.pixels, axis=1)
         n = pts.shape[1] if n is None else n
         return pts[:, :n], pix[:, :n]
+
+    def stops(self) -> NDArray[np.float64]:
+        """(T, S, 3N_led, 3N_led) the covariance of each stop's LED points (the joint
+        covariance of the data set is block-diagonal: one block a stop)."""
+        return np.stack(self.covariances, axis=1)
 
 
 class BatchRun:
@@ -257,6 +262,7 @@ class BatchRun:
         # The instrument advertises the scenario's full noise: the estimators weigh by it.
         self.advertised: TotalStationSpec = sc.noise.total_station.spec()
         self.advertised_tilt: InclinometerSpec = sc.noise.inclinometer.spec()
+        self.advertised_pixel_px = sc.noise.led_detection_px
         self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
         n_leds = len(self.marker.leds_body)
@@ -407,8 +413,10 @@ class BatchRun:
 
     def _point(self, step: Point) -> None:
         obs, parent = self.placed[step.child]
-        leds_level, _ = self.estimators.leds(obs, self.marker)
+        leds_level, cov_level = self.estimators.leds(obs, self.marker)
         world = parent.level2world(leds_level)
+        # The levelled frame turns about z into W: each LED's 3 x 3 block turns with it.
+        turn = np.kron(np.eye(leds_level.shape[1]), parent.rotation)
         camera = self.plan.cameras[step.camera]
         true = self._leds(step.child)
         pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(self.trials, -1, 2)
@@ -425,6 +433,7 @@ class BatchRun:
         data = self._dataset(step)
         data.points.append(world)
         data.pixels.append(pixels)
+        data.covariances.append(turn @ cov_level @ np.swapaxes(turn, 1, 2))
 
     def _calibrate(self, step: Calibrate) -> None:
         data = self._dataset(step, "visit")
@@ -440,6 +449,12 @@ class BatchRun:
         else:
             world = (np.full(self.trials, np.nan), np.full(self.trials, np.nan))
         parent = self.fixes[-1][0]
+        own = own_position_variance(
+            cal.position_std,
+            cal.sigma_px,
+            self.advertised_pixel_px,
+            np.trace(est.points_effect(cal, points, data.stops()), axis1=1, axis2=2),
+        )
         self.visits[(step.camera, step.visit)] = VisitOutcome(
             points=np.isfinite(pixels).all(axis=2).sum(axis=1),
             distance=self.distance.copy(),
@@ -450,7 +465,7 @@ class BatchRun:
             local_pixel=local[0],
             local_3d=local[1],
             predicted_transfer=_transfer_rms(parent, cal.position),
-            predicted_calibration=np.sqrt(np.sum(cal.position_std**2, axis=1)),
+            predicted_calibration=np.sqrt(own),
             calibrated=cal.calibrated,
         )
 
@@ -475,8 +490,3 @@ def _transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArr
     jac[:, :, 1:] = np.eye(3)
     cov = jac @ parent.covariance @ np.swapaxes(jac, 1, 2)
     return np.sqrt(np.trace(cov, axis1=1, axis2=2))
-
-
-def calibrated_cameras(calibrations: Calibrations) -> list[TsaiCamera | None]:
-    """The calibrated cameras of a visit, trial by trial (None where it failed)."""
-    return list(calibrations.cameras)

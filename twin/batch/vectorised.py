@@ -4,9 +4,15 @@
 the batched forms of the campaign's own estimators: the marker fit and the child's
 observation (:func:`twin.localization.observation_batch.observe_child_batch`), the CPS state
 (:class:`twin.localization.sequence_batch.CpsBatch`), the LED positions
-(:func:`twin.instruments.marker_pose_batch.led_positions_batch`). Each trial's numbers are
-those of the scalar code (the tests hold them to it); none depends on the other trials of
+(:func:`twin.instruments.marker_pose_batch.led_positions_batch`), Tsai's calibration
+(:func:`calib.tsai_batch.calibrate_tsai_batch`, from the visit's noise-free calibration)
+and the Table III metrics (:mod:`calib.metrics_batch`). The positioning numbers are the
+scalar code's bit for bit, the calibrations its own to a small fraction of their standard
+deviations (the tests hold them to it); no trial's numbers depend on the other trials of
 its batch.
+
+Trials that gave up stops calibrate on fewer points: trials are fitted in groups of the
+same number of points (:func:`twin.batch.estimators.by_count`).
 """
 
 from __future__ import annotations
@@ -16,7 +22,20 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from twin.batch.estimators import CpsStates, Observations, ParentEstimates, TrialByTrial
+from calib.camera_batch import TsaiCameras
+from calib.metrics_batch import errors_3d_batch, pixel_errors_batch
+from calib.tsai import FULL_MIN_POINTS
+from calib.tsai_batch import calibrate_tsai_batch, position_covariance_from_blocks
+from twin.batch.estimators import (
+    Calibrations,
+    CpsStates,
+    Estimators,
+    Observations,
+    ParentEstimates,
+    by_count,
+    coordinate_rows,
+    found,
+)
 from twin.instruments.marker_pose_batch import MarkerPoseBatch, led_positions_batch
 from twin.localization.observation_batch import ChildObservationBatch, observe_child_batch
 from twin.localization.sequence_batch import CpsBatch
@@ -48,7 +67,7 @@ def _observation(child: str, o: Observations) -> ChildObservationBatch:
     return ChildObservationBatch(child, o.point, o.covariance)
 
 
-class Vectorised(TrialByTrial):
+class Vectorised(Estimators):
     """The campaign's estimators over all the trials at once (the batch's default)."""
 
     def observe(self, polar, spec, inclinometer, marker, false_alarm_rate) -> Observations:
@@ -76,3 +95,69 @@ class Vectorised(TrialByTrial):
             None,
         )
         return led_positions_batch(pose, marker)
+
+    def calibrate(self, points, pixels, image_size, start) -> Calibrations:
+        t = len(points)
+        kept = found(points, pixels)
+        internal = {
+            name: np.repeat(np.asarray(getattr(start, name), float)[None], t, axis=0)
+            for name in ("f", "cx", "cy", "kappa1", "sx", "world2cam_r", "position")
+        }
+        position = np.full((t, 3), np.nan)
+        std = np.full((t, 3), np.nan)
+        sigma = np.full(t, np.nan)
+        for trials, rows in by_count(kept):
+            if rows.shape[1] < FULL_MIN_POINTS:
+                continue  # too few points: not calibrated
+            idx = trials[:, None]
+            result = calibrate_tsai_batch(points[idx, rows], pixels[idx, rows], image_size, start)
+            ok = result.converged
+            cams = result.cameras
+            for name in internal:
+                internal[name][trials[ok]] = getattr(cams, name)[ok]
+            position[trials[ok]] = result.position[ok]
+            std[trials[ok]] = result.std[ok, 8:11]
+            sigma[trials[ok]] = result.sigma_px[ok]
+        cameras = TsaiCameras(**internal, image_size=start.image_size)
+        made = np.isfinite(position).all(axis=1)
+        return Calibrations(cameras, position, std, sigma, made, kept)
+
+    def evaluate(self, calibrations, points, pixels):
+        kept = found(points, pixels) & calibrations.calibrated[:, None]
+        # Points a trial did not measure stand in as zeros and leave the means.
+        pts = np.where(kept[..., None], points, 0.0)
+        pix = np.where(kept[..., None], pixels, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n = kept.sum(axis=1)
+            pixel = np.where(kept, pixel_errors_batch(calibrations.cameras, pts, pix), 0.0)
+            error = np.where(kept, errors_3d_batch(calibrations.cameras, pts, pix), 0.0)
+            return (
+                np.where(n > 0, pixel.sum(axis=1) / n, np.nan),
+                np.where(n > 0, error.sum(axis=1) / n, np.nan),
+            )
+
+    def points_effect(self, calibrations, points, stops):
+        out = np.full((len(points), 3, 3), np.nan)
+        for trials, rows in by_count(calibrations.kept & calibrations.calibrated[:, None]):
+            if rows.shape[1] > 0:  # else not calibrated
+                out[trials] = position_covariance_from_blocks(
+                    _select(calibrations.cameras, trials),
+                    points[trials[:, None], rows],
+                    stops[trials],
+                    coordinate_rows(rows),
+                )
+        return out
+
+
+def _select(cameras: TsaiCameras, trials: NDArray[np.intp]) -> TsaiCameras:
+    """The cameras of some trials."""
+    return TsaiCameras(
+        cameras.f[trials],
+        cameras.cx[trials],
+        cameras.cy[trials],
+        cameras.kappa1[trials],
+        cameras.sx[trials],
+        cameras.world2cam_r[trials],
+        cameras.position[trials],
+        cameras.image_size,
+    )

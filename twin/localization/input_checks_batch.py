@@ -62,11 +62,11 @@ def check_covariances_batch(cov: ArrayLike, n: int, name: str) -> NDArray[np.flo
 
 
 def block_diagonal(blocks: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(T, N, 3, 3) blocks -> (T, 3N, 3N) block-diagonal matrices."""
-    t, n = blocks.shape[:2]
-    full = np.zeros((t, 3 * n, 3 * n))
+    """(T, N, k, k) blocks -> (T, kN, kN) block-diagonal matrices."""
+    t, n, k = blocks.shape[:3]
+    full = np.zeros((t, k * n, k * n))
     for i in range(n):
-        full[:, 3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = blocks[:, i]
+        full[:, k * i : k * i + k, k * i : k * i + k] = blocks[:, i]
     return full
 
 

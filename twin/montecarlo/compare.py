@@ -77,6 +77,62 @@ def median_ratio(
     return MedianRatio(ma, mb, mb / ma, float(low), float(high), level, len(a), len(b))
 
 
+@dataclass(frozen=True)
+class RmsRatio:
+    """The ratio of two tables' RMS errors, with a bootstrap interval.
+
+    Attributes:
+        rms_a, rms_b: pooled RMS errors (the tables' unit). ratio: rms_b / rms_a.
+        low, high: the bootstrap interval of the ratio (``level``, percentile method).
+        std: the bootstrap standard deviation of the ratio.
+        trials_a, trials_b: trials with at least one error.
+    """
+
+    rms_a: float
+    rms_b: float
+    ratio: float
+    low: float
+    high: float
+    std: float
+    level: float
+    trials_a: int
+    trials_b: int
+
+
+def rms_ratio(
+    a: Sequence[np.ndarray],
+    b: Sequence[np.ndarray],
+    resamples: int = 4000,
+    level: float = 0.95,
+    seed: int = 0,
+) -> RmsRatio:
+    """Ratio of pooled RMS errors, b over a, with a trial-level bootstrap interval.
+
+    Args:
+        a, b: per-trial error arrays (:func:`errors_by_trial`), at least two trials each.
+        resamples: bootstrap resamples. level: the interval's coverage. seed: its RNG.
+    """
+    if len(a) < 2 or len(b) < 2:
+        raise ValueError(f"need at least two trials in each table, got {len(a)} and {len(b)}")
+    rng = np.random.default_rng(seed)
+
+    def resampled(trials: Sequence[np.ndarray]) -> tuple[float, np.ndarray]:
+        squares = np.array([np.sum(t**2) for t in trials])
+        counts = np.array([t.size for t in trials], dtype=float)
+        pick = rng.integers(0, len(trials), (resamples, len(trials)))
+        rms = np.sqrt(squares[pick].sum(axis=1) / counts[pick].sum(axis=1))
+        return float(np.sqrt(squares.sum() / counts.sum())), rms
+
+    ra, boot_a = resampled(a)
+    rb, boot_b = resampled(b)
+    ratios = boot_b / boot_a
+    tail = 0.5 * (1.0 - level)
+    low, high = np.quantile(ratios, [tail, 1.0 - tail])
+    return RmsRatio(
+        ra, rb, rb / ra, float(low), float(high), float(ratios.std()), level, len(a), len(b)
+    )
+
+
 def batch_disagreement(
     trials: Sequence[np.ndarray], batch: int, factor: float, draws: int = 4000, seed: int = 0
 ) -> tuple[float, tuple[float, float]]:

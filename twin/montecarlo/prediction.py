@@ -8,21 +8,31 @@ deviations (Tsai's least squares). Two parts make a calibrated camera's world-fr
   so an error ``(d_yaw, d_t)`` of that pose moves the whole calibration rigidly, the
   camera's centre ``c`` by ``d_t + d_yaw * z x (c - t)``;
 - the calibration itself: the spread of the camera's centre from the pixel noise of the
-  station's own data (Tsai's covariance; it treats the LED positions as exact).
+  station's own data (Tsai's covariance, which treats the LED positions as exact, at the
+  detector's pixel noise: :func:`calib.covariance.own_position_variance`) and from the
+  errors of those LED positions. The LEDs of one stop are placed with their marker's
+  measured pose, so they share its error (``DataPoint.leds_covariance``, one block a
+  stop): it does not average down over the points as independent errors would
+  (:func:`calib.tsai_batch.position_covariance_from_blocks`).
 
-The prediction is first order and treats the two as independent.
+The prediction is first order and treats the parts as independent.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.campaign.records import CALIBRATION, PARENT_FIX
+from calib.camera import TsaiCamera
+from calib.camera_batch import TsaiCameras
+from calib.covariance import own_position_variance
+from calib.io.camera_files import camera_from_dict
+from calib.tsai_batch import position_covariance_from_blocks
+from twin.campaign.records import CALIBRATION, PARENT_FIX, POINT
 from twin.truth import TRUTH_INSTRUMENT, instrument_truth
 
 
@@ -55,7 +65,8 @@ class CalibrationPrediction:
     Attributes:
         camera, visit: which calibration.
         transfer_rms_m: RMS 3D error from the parent's pose at the station, m.
-        calibration_rms_m: RMS 3D error of the calibration from its own data, m.
+        calibration_rms_m: RMS 3D error of the calibration from its own data (pixel
+            noise and the points' errors), m.
     """
 
     camera: str
@@ -84,28 +95,51 @@ class ParentFinal:
     distance_travelled_m: float
 
 
+def points_variance(model: dict[str, Any], stops: Sequence[dict[str, Any]], n: int) -> float:
+    """Variance (trace, m^2) of a calibrated camera's centre from the errors of the first
+    ``n`` LED points of its data (``DataPoint`` records, one a stop), at the camera;
+    0 where the records hold no covariance (logs written before they did)."""
+    blocks = [np.asarray(s.get("leds_covariance", []), dtype=float) for s in stops]
+    if n < 1 or not blocks or any(b.size == 0 for b in blocks):
+        return 0.0
+    points = np.concatenate([np.asarray(s["leds_world"], dtype=float) for s in stops])[:n]
+    camera = camera_from_dict(model, "calibration record")
+    assert isinstance(camera, TsaiCamera)
+    cov = position_covariance_from_blocks(
+        TsaiCameras.from_cameras([camera]), points[None], np.stack(blocks)[None]
+    )
+    return float(np.trace(cov[0]))
+
+
 def predictions_from_log(
-    messages: Iterable[Any],
+    messages: Iterable[Any], pixel_noise_px: float | None = None
 ) -> tuple[list[CalibrationPrediction], ParentFinal | None]:
     """The predicted errors of every calibration of a run, and its parent's last fix.
 
     Args:
         messages: the log's messages in file order (``LogContents.messages``).
+        pixel_noise_px: the LED detector's pixel noise, px
+            (:func:`calib.covariance.own_position_variance`).
     """
     fix: dict[str, Any] | None = None
     truth: list[dict[str, Any]] = []
     out: list[CalibrationPrediction] = []
+    stops: dict[tuple[str, int], list[dict[str, Any]]] = {}
     for m in messages:
         if m.topic == PARENT_FIX:
             fix = m.data
         elif m.topic == TRUTH_INSTRUMENT:
             truth.append(m.data)
+        elif m.topic == POINT and m.data["dataset"] == "visit":
+            stops.setdefault((m.data["camera"], int(m.data["visit"])), []).append(m.data)
         elif m.topic == CALIBRATION and fix is not None:
             rec = m.data
             position = np.asarray(rec["camera_model"]["position_m"], dtype=float)
             cov = camera_position_covariance(fix["covariance"], fix["translation"], position)
-            std = rec["std"]
-            own = sum(float(std.get(k, 0.0)) ** 2 for k in ("x", "y", "z"))
+            std = [float(rec["std"].get(k, 0.0)) for k in ("x", "y", "z")]
+            data = stops.get((rec["camera"], int(rec["visit"])), [])
+            shared = points_variance(rec["camera_model"], data, int(rec["points"]))
+            own = float(own_position_variance(std, rec["sigma_px"], pixel_noise_px, shared))
             out.append(
                 CalibrationPrediction(
                     rec["camera"], int(rec["visit"]), float(np.sqrt(np.trace(cov))), own**0.5

@@ -109,7 +109,9 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 f"{source} --fidelity {spec.fidelity} --seed {spec.seed} "
                 f"--strategy {spec.strategy}"
             ) from exc
-        predictions, final = predictions_from_log(read_log(f"{tmp}/log.mcap").messages)
+        messages = read_log(f"{tmp}/log.mcap").messages
+        pixel_noise = spec.scenario.noise.led_detection_px
+        predictions, final = predictions_from_log(messages, pixel_noise)
     rows = trial_rows(spec, results, predictions, final)
     return TrialResult(spec, tuple(rows), time.perf_counter() - t0)
 

@@ -75,25 +75,30 @@ def test_a_trial_alone_gives_what_it_gives_in_a_batch(smoke_plan, estimators):
     assert len(set(np.round(v.position_error, 12))) == len(seeds)  # trials differ
 
 
-def _assert_same_outcome(a, b):
-    assert a.calibrations.keys() == b.calibrations.keys()
-    for key, v in a.calibrations.items():
-        w = b.calibrations[key]
-        for field in dataclasses.fields(v):
-            a_, b_ = getattr(v, field.name), getattr(w, field.name)
-            np.testing.assert_array_equal(a_, b_, err_msg=f"{key} {field.name}")
-    np.testing.assert_array_equal(a.parent_error, b.parent_error)
-    np.testing.assert_array_equal(a.parent_covariance, b.parent_covariance)
-    np.testing.assert_array_equal(a.failures, b.failures)
-
-
 def test_the_array_estimators_give_the_campaigns_numbers(hall_plan):
-    # The hall's five visits in twelve trials: each number the scalar code's, bit for bit.
+    # The hall's five visits in twelve trials. Positioning is the scalar code's bit for bit;
+    # the batched Tsai fit stops within a few 1e-6 of a standard deviation of scipy's
+    # minimum (10 mm and 10 mrad: 1e-7 m and 1e-7 rad are 1e-5 of one), so the metrics
+    # agree to a millionth.
     seeds = list(range(100, 112))
     scalar = BatchRun(hall_plan, seeds, estimators=TrialByTrial()).run()
     arrays = BatchRun(hall_plan, seeds, estimators=Vectorised()).run()
-    _assert_same_outcome(scalar, arrays)
-    assert all(v.calibrated.sum() >= 10 for v in arrays.calibrations.values())
+    np.testing.assert_array_equal(scalar.parent_error, arrays.parent_error)
+    np.testing.assert_array_equal(scalar.parent_covariance, arrays.parent_covariance)
+    np.testing.assert_array_equal(scalar.failures, arrays.failures)
+    assert scalar.calibrations.keys() == arrays.calibrations.keys()
+    for key, v in scalar.calibrations.items():
+        w = arrays.calibrations[key]
+        assert w.calibrated.sum() >= 10, key
+        for name in ("calibrated", "points", "distance"):
+            np.testing.assert_array_equal(getattr(v, name), getattr(w, name), err_msg=name)
+        close = np.testing.assert_allclose
+        close(w.position_error, v.position_error, rtol=0, atol=1e-7, err_msg=str(key))
+        close(w.rotation_error, v.rotation_error, rtol=0, atol=1e-7, err_msg=str(key))
+        for name in ("world_pixel", "world_3d", "local_pixel", "local_3d"):
+            close(getattr(w, name), getattr(v, name), rtol=1e-6, err_msg=f"{key} {name}")
+        for name in ("predicted_transfer", "predicted_calibration"):
+            close(getattr(w, name), getattr(v, name), rtol=1e-5, err_msg=f"{key} {name}")
 
 
 def test_a_stop_whose_led_leaves_the_image_is_given_up(smoke_plan):

@@ -4,7 +4,7 @@ chance that a few seeds of one distribution fail a factor band."""
 import numpy as np
 import pytest
 
-from twin.montecarlo.compare import batch_disagreement, errors_by_trial, median_ratio
+from twin.montecarlo.compare import batch_disagreement, errors_by_trial, median_ratio, rms_ratio
 
 
 def _trials(n: int, scale: float, seed: int) -> list[np.ndarray]:
@@ -32,6 +32,23 @@ def test_the_interval_covers_the_true_ratio_and_excludes_a_wrong_one():
     assert double.low < 2.0 < double.high
     assert double.low > 1.5
     assert double.ratio == pytest.approx(double.median_b / double.median_a)
+
+
+def test_the_rms_ratio_covers_the_true_ratio_and_its_spread_shrinks_with_trials():
+    # Gaussian errors of sigma 1 and 1.3: the RMS ratio is 1.3; its bootstrap spread is
+    # that of a ratio of two RMS of n values each, about sqrt(2 / (2 n)) / 1 relative.
+    rng = np.random.default_rng(7)
+    a = [rng.normal(0.0, 1.0, 1) for _ in range(2000)]
+    b = [rng.normal(0.0, 1.3, 1) for _ in range(2000)]
+    r = rms_ratio(a, b)
+    assert r.low < 1.3 < r.high
+    assert r.ratio == pytest.approx(r.rms_b / r.rms_a)
+    expected = 1.3 * np.sqrt(1.0 / 2000)  # sqrt(2 * (1 / (2 n)))
+    assert r.std == pytest.approx(expected, rel=0.15)
+    few = rms_ratio(a[:100], b[:100])
+    assert few.std > 3 * r.std
+    with pytest.raises(ValueError, match="at least two trials"):
+        rms_ratio(a[:1], b)
 
 
 def test_few_seeds_of_one_distribution_often_fail_a_factor_band():
