@@ -231,6 +231,22 @@ class Estimators(abc.ABC):
         )
 
 
+def calibrate_one(
+    points: NDArray[np.float64], pixels: NDArray[np.float64], image_size: tuple[int, int]
+) -> tuple[TsaiCamera, NDArray[np.float64], NDArray[np.float64], float] | None:
+    """One trial's calibration as the campaign makes it (:func:`calib.calibrate_tsai`):
+    the camera, its (3,) centre and standard deviations, m, and the residual sigma, px; None
+    where it fails."""
+    try:
+        result = calibrate_tsai(points, pixels, image_size)
+    except ValueError:
+        return None
+    cam = result.camera
+    assert isinstance(cam, TsaiCamera)
+    s = result.std_by_name
+    return cam, cam.position, np.array([s["x"], s["y"], s["z"]]), result.sigma_px
+
+
 # -- the reference: the campaign's scalar code, trial by trial -------------------------------------
 class _ScalarCps(CpsStates):
     def __init__(self, trials: int, children: Sequence[str], solver: str, rate: float | None):
@@ -321,18 +337,12 @@ class TrialByTrial(Estimators):
         std = np.full((len(points), 3), np.nan)
         sigma = np.full(len(points), np.nan)
         for k in range(len(points)):
-            try:
-                result = calibrate_tsai(points[k][kept[k]], pixels[k][kept[k]], image_size)
-            except ValueError:
+            one = calibrate_one(points[k][kept[k]], pixels[k][kept[k]], image_size)
+            if one is None:
                 cameras.append(start)
                 continue
-            cam = result.camera
-            assert isinstance(cam, TsaiCamera)
+            cam, position[k], std[k], sigma[k] = one
             cameras.append(cam)
-            position[k] = cam.position
-            s = result.std_by_name
-            std[k] = (s["x"], s["y"], s["z"])
-            sigma[k] = result.sigma_px
         made = np.isfinite(position).all(axis=1)
         return Calibrations(TsaiCameras.from_cameras(cameras), position, std, sigma, made, kept)
 

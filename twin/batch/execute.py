@@ -18,11 +18,17 @@ CPS with its joint covariance and consistency tests, LED positions from the mark
 Tsai's calibration of every visit and the Table III metrics.
 
 What the batch leaves out, which the geometric fidelity keeps: decisions taken again under
-noise (a re-aim after a lost lock or a wrong prism, a stop given up because an LED fell out
-of view, a fix measured again after a failed consistency test: a trial that fails a test
-keeps its estimate and counts a failure), the faults of ``[faults]``, the check shots at a
-child placed earlier (which only matter when it moved), the tilt of a child on a tilted
-floor patch (its marker is moved in the plane), and occlusions by the robots' own noise.
+noise (a re-aim after a lost lock or a wrong prism; a stop where an LED left the image is
+given up, as the campaign does, but not replaced by another; a fix that failed its
+consistency test is not measured again: such a trial keeps its estimate and counts a
+failure), the faults of ``[faults]``, the check shots at a child placed earlier (which only
+matter when it moved), the tilt of a child on a tilted floor patch (its marker is moved in
+the plane), and the occlusion of an LED by an obstacle or a person (the plan's stops were
+chosen in the clear; the trials' stopping errors move them a few centimetres).
+
+The executor advances one step of the plan at a time for all its trials (:meth:`BatchRun.
+step`), and :meth:`BatchRun.outcome` reads what the trials gave so far: a caller can run a
+plan decision by decision (a CPS leg, a camera's data) and look at the state between them.
 """
 
 from __future__ import annotations
@@ -40,6 +46,7 @@ from twin.batch.estimators import (
     Estimators,
     Observations,
     ParentEstimates,
+    found,
 )
 from twin.batch.plan import (
     BatchPlan,
@@ -70,27 +77,35 @@ FALSE_ALARM_RATE = 1e-4
 class Draws:
     """Each trial's standard normal draws, handed out in a fixed order.
 
+    Each trial's draws come from its own generator, in blocks; a generator gives the same
+    sequence whatever the blocks, so a trial's noise depends on its seed alone, not on the
+    batch, the chunk or how far ahead the draws were reserved.
+
     Args:
         seeds: (T,) the trials' root seeds.
-        count: draws each trial needs.
+        count: draws each trial is expected to need (reserved at once; more are drawn as
+            they are needed).
     """
 
     def __init__(self, seeds: Sequence[int], count: int) -> None:
-        self.values = np.stack(
-            [
-                np.random.default_rng(
-                    np.random.SeedSequence(int(seed), spawn_key=(BATCH_STREAM,))
-                ).standard_normal(count)
-                for seed in seeds
-            ]
-        )
+        self._generators = [
+            np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(BATCH_STREAM,)))
+            for seed in seeds
+        ]
+        self.values = np.zeros((len(seeds), 0))
+        self.used = 0
+        self._reserve(count)
+
+    def _reserve(self, count: int) -> None:
+        more = np.stack([g.standard_normal(count) for g in self._generators])
+        self.values = np.concatenate([self.values[:, self.used :], more], axis=1)
         self.used = 0
 
     def take(self, *shape: int) -> NDArray[np.float64]:
         """(T, *shape) the next draws of every trial."""
         n = math.prod(shape)
         if self.used + n > self.values.shape[1]:
-            raise RuntimeError("the batch drew more noise than it counted: a bug")
+            self._reserve(max(n, 4096))
         out = self.values[:, self.used : self.used + n].reshape(len(self.values), *shape)
         self.used += n
         return out
@@ -438,6 +453,9 @@ class BatchRun:
     def _calibrate(self, step: Calibrate) -> None:
         data = self._dataset(step, "visit")
         points, pixels = data.arrays(step.points)
+        # A trial that gave up too many stops is not calibrated (the campaign's rule).
+        too_few = found(points, pixels).sum(axis=1) < self.plan.scenario.campaign.min_points
+        pixels = np.where(too_few[:, None, None], np.nan, pixels)
         truth = self.plan.cameras[step.camera]
         est = self.estimators
         cal = est.calibrate(points, pixels, truth.image_size, step.nominal)

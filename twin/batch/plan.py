@@ -16,8 +16,8 @@ solves CPS as in a real run), and records, in the order they happen:
 
 The batch executes this plan for many trials at once (:mod:`twin.batch.execute`), each with
 its own noise. Decisions are not taken again under noise: where a trial's noise would
-change a decision of the campaign (a re-aim after a lost lock, a stop skipped because an
-LED fell out of view, a retried fix), the batch keeps the noise-free decision.
+change a decision of the campaign (a re-aim after a lost lock, another stop in place of one
+where an LED fell out of view, a retried fix), the batch keeps the noise-free decision.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from twin.campaign.records import (
     CalibrationRecord,
 )
 from twin.campaign.strategies import strategy_for
+from twin.campaign.strategy import CampaignView, Question
 from twin.hal.devices import MobileBase
 from twin.hal.readings import DriveResult
 from twin.hal.recording import recorded
@@ -207,49 +208,141 @@ class _Witness(MobileBaseWrapper):
         return result
 
 
+class PlanSession:
+    """The campaign of a scenario without noise, advanced one decision at a time.
+
+    The campaign asks its questions (:class:`twin.campaign.strategy.Question`: which
+    reference cameras, which visit next, which leg, which formation...) one by one;
+    :meth:`answer` sends an answer and returns the plan's steps the campaign took until its
+    next question. A batch of trials (:class:`twin.batch.execute.BatchRun`) executes those
+    steps, so a caller (an environment whose agent takes the decisions, or the strategy
+    itself: :meth:`suggested`) advances a batch of episodes one decision at a time.
+    :func:`record_plan` answers every question with the strategy's answer.
+
+    Args:
+        scenario: the scenario, with its noise (the instrument advertises it).
+        strategy: the strategy by name that :meth:`suggested` asks (default: the
+            scenario's).
+
+    The session holds a MuJoCo world: :meth:`close` it (or use it as a context manager).
+    """
+
+    def __init__(self, scenario: Scenario, strategy: str | None = None) -> None:
+        self.scenario = scenario
+        self.strategy = strategy_for(scenario, strategy)
+        quiet = scenario.without_noise()
+        world = build_world(quiet)
+        self._recorder = _Recorder()
+        self._sim = build_sim_rig(world, "geometric", advertised=scenario.noise)
+        try:
+            sim = self._sim
+            names = (sim.rig.parent.name, *sim.rig.children)
+            self._start = {name: _truth(sim, name) for name in names}
+            self._cameras = {n: sim.frame.camera(world.camera(n)) for n in world.camera_names}
+            radii = led_radii(world)
+            self._parent, self._children = sim.rig.parent.name, tuple(sim.rig.children)
+            self._radii = {
+                c: np.array([radii[(c, k)] for k in range(N_LEDS)]) for c in self._children
+            }
+            devices = wrapped(sim.rig, base=lambda base: _Witness(base, sim, self._recorder))
+            rig = recorded(devices, self._recorder)
+            self._campaign = Campaign(rig, quiet, self._recorder, strategy=self.strategy)
+            self.strategy.start(self._campaign.view)
+            self._generator = self._campaign.steps()
+            self._parser = _StepParser()
+            self.question: Question | None = None
+            self._advance(lambda: next(self._generator))
+        except BaseException:
+            self._sim.close()
+            raise
+
+    @property
+    def view(self) -> CampaignView:
+        """What a strategy may look at to answer :attr:`question`."""
+        return self._campaign.view
+
+    @property
+    def done(self) -> bool:
+        """Whether the campaign has finished (no question left)."""
+        return self.question is None
+
+    def suggested(self) -> object:
+        """The strategy's answer to the current question."""
+        if self.question is None:
+            raise RuntimeError("the campaign has finished: no question to answer")
+        return self.question.ask(self.strategy, self.view)
+
+    def answer(self, answer: object) -> tuple[Step, ...]:
+        """Answer the current question; the steps the campaign took until its next one."""
+        if self.question is None:
+            raise RuntimeError("the campaign has finished: no question to answer")
+        before = len(self._parser.steps)
+        self._advance(lambda: self._generator.send(answer))
+        return tuple(self._parser.steps[before:])
+
+    def _advance(self, resume: Any) -> None:
+        try:
+            self.question = resume()
+        except StopIteration:
+            self.question = None
+        self._parser.feed(self._recorder.records)
+        self._recorder.records.clear()
+
+    @property
+    def plan(self) -> BatchPlan:
+        """The plan so far (its steps those the campaign has taken)."""
+        return BatchPlan(
+            scenario=self.scenario,
+            strategy=self.strategy.name,
+            parent=self._parent,
+            children=self._children,
+            start=self._start,
+            steps=tuple(self._parser.steps),
+            cameras=self._cameras,
+            led_radii=self._radii,
+            planned_visits=tuple(self._parser.visits),
+        )
+
+    def close(self) -> None:
+        """Free the world."""
+        self._sim.close()
+
+    def __enter__(self) -> PlanSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
-    """Run the campaign of ``scenario`` once at the geometric fidelity without noise and
-    record its plan (see the module).
+    """Run the campaign of ``scenario`` once at the geometric fidelity without noise, every
+    decision its strategy's, and record its plan (see the module).
 
     Args:
         scenario: the scenario, with its noise (the instrument advertises it).
         strategy: the campaign's strategy by name (default: the scenario's).
     """
-    chosen = strategy_for(scenario, strategy)
-    quiet = scenario.without_noise()
-    world = build_world(quiet)
-    recorder = _Recorder()
-    sim = build_sim_rig(world, "geometric", advertised=scenario.noise)
-    try:
-        start = {name: _truth(sim, name) for name in (sim.rig.parent.name, *sim.rig.children)}
-        cameras = {name: sim.frame.camera(world.camera(name)) for name in world.camera_names}
-        radii = led_radii(world)
-        devices = wrapped(sim.rig, base=lambda base: _Witness(base, sim, recorder))
-        rig = recorded(devices, recorder)
-        Campaign(rig, quiet, recorder, strategy=chosen).run()
-        parent, children = sim.rig.parent.name, tuple(sim.rig.children)
-    finally:
-        sim.close()
-    steps, visits = _steps(recorder.records)
-    return BatchPlan(
-        scenario=scenario,
-        strategy=chosen.name,
-        parent=parent,
-        children=children,
-        start=start,
-        steps=tuple(steps),
-        cameras=cameras,
-        led_radii={c: np.array([radii[(c, k)] for k in range(N_LEDS)]) for c in children},
-        planned_visits=tuple(visits),
-    )
+    with PlanSession(scenario, strategy) as session:
+        while not session.done:
+            session.answer(session.suggested())
+        return session.plan
 
 
-def _steps(records: list[tuple[str, Any]]) -> tuple[list[Step], list[tuple[str, int]]]:
-    """The plan's steps and visits from a run's records, in order."""
-    steps: list[Step] = []
-    visits: list[tuple[str, int]] = []
-    truth: dict[str, RobotTruth] = {}
-    for topic, rec in records:
+class _StepParser:
+    """Turns a run's records into the plan's steps and visits, as they come."""
+
+    def __init__(self) -> None:
+        self.steps: list[Step] = []
+        self.visits: list[tuple[str, int]] = []
+        self._truth: dict[str, RobotTruth] = {}
+
+    def feed(self, records: list[tuple[str, Any]]) -> None:
+        """Parse the next records, in order."""
+        for topic, rec in records:
+            self._one(topic, rec)
+
+    def _one(self, topic: str, rec: Any) -> None:
+        steps, visits, truth = self.steps, self.visits, self._truth
         if topic == TRUTH_AFTER_DRIVE:
             name, where = rec
             truth[name] = where
@@ -271,4 +364,3 @@ def _steps(records: list[tuple[str, Any]]) -> tuple[list[Step], list[tuple[str, 
             visits.append((rec.camera, rec.visit))
         elif topic == SKIPPED:
             visits.append((rec.camera, rec.visit))
-    return steps, visits

@@ -12,20 +12,29 @@ deviations (the tests hold them to it); no trial's numbers depend on the other t
 its batch.
 
 Trials that gave up stops calibrate on fewer points: trials are fitted in groups of the
-same number of points (:func:`twin.batch.estimators.by_count`).
+same number of points (:func:`twin.batch.estimators.by_count`). A trial the batched fit
+does not bring to convergence from the visit's noise-free calibration (its solution lies
+far from it: a long route's drift moves the world frame) is calibrated as the campaign
+does, by :func:`calib.calibrate_tsai` from its closed-form stages.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.camera_batch import TsaiCameras
+from calib.checks import DegenerateGeometryWarning, InputWarning
 from calib.metrics_batch import errors_3d_batch, pixel_errors_batch
 from calib.tsai import FULL_MIN_POINTS
-from calib.tsai_batch import calibrate_tsai_batch, position_covariance_from_blocks
+from calib.tsai_batch import (
+    TsaiBatchResult,
+    calibrate_tsai_batch,
+    position_covariance_from_blocks,
+)
 from twin.batch.estimators import (
     Calibrations,
     CpsStates,
@@ -33,10 +42,12 @@ from twin.batch.estimators import (
     Observations,
     ParentEstimates,
     by_count,
+    calibrate_one,
     coordinate_rows,
     found,
 )
 from twin.instruments.marker_pose_batch import MarkerPoseBatch, led_positions_batch
+from twin.localization.input_checks import ConvergenceWarning
 from twin.localization.observation_batch import ChildObservationBatch, observe_child_batch
 from twin.localization.sequence_batch import CpsBatch
 
@@ -49,7 +60,12 @@ class _BatchCps(CpsStates):
         self.sequence.children_moved([_observation(child, observations)])
 
     def parent_moved(self, observations: Sequence[tuple[str, Observations]]) -> NDArray[np.bool_]:
-        solution = self.sequence.parent_moved([_observation(c, o) for c, o in observations])
+        with warnings.catch_warnings():
+            # A few trials of thousands whose Gauss-Newton stops at its iteration limit
+            # keep that estimate, as the campaign's CPS does; a warning a chunk says nothing
+            # the trials' errors do not.
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            solution = self.sequence.parent_moved([_observation(c, o) for c, o in observations])
         # A trial without a solution (children too close) is lost: its state is NaN and it
         # counts a failure at every later fix.
         return solution.inconsistent | solution.poor_geometry
@@ -111,13 +127,27 @@ class Vectorised(Estimators):
                 continue  # too few points: not calibrated
             idx = trials[:, None]
             result = calibrate_tsai_batch(points[idx, rows], pixels[idx, rows], image_size, start)
-            ok = result.converged
-            cams = result.cameras
+            # A fit that wandered off (f or sx not positive) did not converge either.
+            q = result.q
+            ok = result.converged & np.isfinite(q).all(axis=1) & (q[:, 0] > 0) & (q[:, 3] > 0)
+            cams = _select(result, np.flatnonzero(ok))
             for name in internal:
-                internal[name][trials[ok]] = getattr(cams, name)[ok]
+                internal[name][trials[ok]] = getattr(cams, name)
             position[trials[ok]] = result.position[ok]
             std[trials[ok]] = result.std[ok, 8:11]
             sigma[trials[ok]] = result.sigma_px[ok]
+            # A trial whose solution lies far from the start (a long route's drift moves
+            # the world frame) is calibrated as the campaign does, from closed-form stages.
+            for k in trials[~ok]:
+                with warnings.catch_warnings():
+                    # Its warnings about the data are the campaign's to give, not a chunk's.
+                    warnings.simplefilter("ignore", InputWarning)
+                    warnings.simplefilter("ignore", DegenerateGeometryWarning)
+                    one = calibrate_one(points[k][kept[k]], pixels[k][kept[k]], image_size)
+                if one is not None:
+                    cam, position[k], std[k], sigma[k] = one
+                    for name in internal:
+                        internal[name][k] = getattr(cam, name)
         cameras = TsaiCameras(**internal, image_size=start.image_size)
         made = np.isfinite(position).all(axis=1)
         return Calibrations(cameras, position, std, sigma, made, kept)
@@ -149,8 +179,20 @@ class Vectorised(Estimators):
         return out
 
 
-def _select(cameras: TsaiCameras, trials: NDArray[np.intp]) -> TsaiCameras:
-    """The cameras of some trials."""
+def _select(cameras: TsaiCameras | TsaiBatchResult, trials: NDArray[np.intp]) -> TsaiCameras:
+    """The cameras of some trials (of a batch of cameras or of calibrations)."""
+    if isinstance(cameras, TsaiBatchResult):
+        q, values = cameras.q[trials], cameras.values[trials]
+        return TsaiCameras(
+            q[:, 0],
+            q[:, 1],
+            q[:, 2],
+            values[:, 4],
+            q[:, 3],
+            cameras.world2cam_r[trials],
+            q[:, 8:11],
+            cameras.image_size,
+        )
     return TsaiCameras(
         cameras.f[trials],
         cameras.cx[trials],

@@ -27,12 +27,15 @@ DEFAULT_CHUNK_SIZE = 200
 once, so a chunk stays within a few hundred MB."""
 
 BATCH_OMITS = (
-    "decisions taken again under noise (re-aims after a lost lock or a wrong prism, stops "
-    "given up because an LED fell out of view, fixes measured again after a failed "
-    "consistency test: such a trial keeps its estimate and counts a failure)",
+    "decisions taken again under noise: re-aims after a lost lock or a wrong prism; a stop "
+    "where an LED left the image is given up but not replaced by another; a fix that failed "
+    "its consistency test is not measured again (such a trial keeps its estimate and counts "
+    "a failure)",
     "the faults of [faults] (scenarios with faults are refused)",
     "the check shots at a child placed earlier (they only matter when it moved)",
     "the tilt of a child on a tilted floor patch (its marker moves in the plane)",
+    "the occlusion of an LED by an obstacle or a person (the plan's stops were chosen in "
+    "the clear)",
 )
 """What the batch fidelity leaves out; the geometric fidelity keeps it (``montecarlo.json``
 and the README say so too)."""

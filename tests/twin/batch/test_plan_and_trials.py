@@ -11,7 +11,7 @@ import pytest
 
 from twin.batch.estimators import TrialByTrial
 from twin.batch.execute import BatchRun
-from twin.batch.plan import Calibrate, Drive, Fix, Place, Point, record_plan
+from twin.batch.plan import Calibrate, Drive, Fix, Place, PlanSession, Point, record_plan
 from twin.batch.vectorised import Vectorised
 from twin.scenario import load_scenario
 
@@ -120,3 +120,62 @@ def test_a_stop_whose_led_leaves_the_image_is_given_up(smoke_plan):
     (v,) = out.calibrations.values()
     (planned,) = smoke_plan.calibrations
     np.testing.assert_array_equal(v.points, [planned.points] * 2)
+
+
+def test_a_trial_the_batched_fit_leaves_unconverged_is_calibrated_one_by_one(
+    smoke_plan, monkeypatch
+):
+    # Held to one iteration, the batched fit converges nowhere: each trial is calibrated
+    # by the campaign's own calibrate_tsai, and gives the scalar estimators' numbers.
+    import twin.batch.vectorised as vectorised
+
+    real = vectorised.calibrate_tsai_batch
+
+    def one_step(*args, **kwargs):
+        return real(*args, **{**kwargs, "max_iterations": 1})
+
+    monkeypatch.setattr(vectorised, "calibrate_tsai_batch", one_step)
+    seeds = [3, 4, 5]
+    arrays = BatchRun(smoke_plan, seeds, estimators=Vectorised()).run()
+    scalar = BatchRun(smoke_plan, seeds, estimators=TrialByTrial()).run()
+    ((key, v),) = arrays.calibrations.items()
+    assert v.calibrated.all()
+    np.testing.assert_array_equal(v.position_error, scalar.calibrations[key].position_error)
+
+
+def test_a_batch_advances_decision_by_decision(smoke_plan):
+    # The campaign without noise asks its questions one by one; each answer gives the
+    # steps until the next question, and a batch of trials executes them as they come:
+    # with the strategy's answers, the same trials as the whole plan's, bit for bit.
+    seeds = [21, 22, 23]
+    whole = BatchRun(smoke_plan, seeds).run()
+    with PlanSession(smoke_plan.scenario, "paper") as session:
+        run = BatchRun(session.plan, seeds)
+        questions = []
+        while not session.done:
+            questions.append(type(session.question).__name__)
+            for step in session.answer(session.suggested()):
+                run.step(step)
+        assert [repr(s) for s in session.plan.steps] == [repr(s) for s in smoke_plan.steps]
+    assert {"ReferenceCameras", "NextVisit", "NextLeg"} <= set(questions)
+    out = run.outcome()
+    ((key, v),) = whole.calibrations.items()
+    np.testing.assert_array_equal(out.calibrations[key].position_error, v.position_error)
+    np.testing.assert_array_equal(out.parent_error, whole.parent_error)
+
+
+def test_the_callers_answers_decide_the_plan(smoke_plan):
+    # Answering "no further visit" at the first chance ends the campaign before any visit:
+    # the batch calibrates nothing and the parent has not moved.
+    with PlanSession(smoke_plan.scenario, "paper") as session:
+        run = BatchRun(session.plan, [1, 2])
+        while not session.done:
+            is_visit = type(session.question).__name__ == "NextVisit"
+            for step in session.answer(None if is_visit else session.suggested()):
+                run.step(step)
+        assert not any(isinstance(s, (Calibrate, Fix)) for s in session.plan.steps)
+        with pytest.raises(RuntimeError, match="no question to answer"):
+            session.answer(None)
+    out = run.outcome()
+    assert out.calibrations == {}
+    np.testing.assert_array_equal(out.distance, [0.0, 0.0])
