@@ -29,6 +29,7 @@ from calib import calibrate_tsai, evaluate
 from calib.camera import TsaiCamera
 from calib.camera_batch import TsaiCameras
 from calib.metrics_batch import pose_errors
+from calib.rotation import rot_z
 from calib.tsai_batch import covariance_from_point_errors
 from twin.instruments.consistency import chi2_threshold
 from twin.instruments.marker import MarkerAssembly
@@ -73,11 +74,7 @@ class ParentEstimates:
     @property
     def rotation(self) -> NDArray[np.float64]:
         """(T, 3, 3) levelled frame to W."""
-        c, s = np.cos(self.yaw), np.sin(self.yaw)
-        out = np.zeros((len(self.yaw), 3, 3))
-        out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1] = c, -s, s, c
-        out[:, 2, 2] = 1.0
-        return out
+        return rot_z(self.yaw)
 
     def level2world(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """(T, ..., 3) points of the levelled frame -> W, m."""

@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.covariance import own_position_variance
+from calib.rotation import rot_z
 from twin.batch.estimators import (
     CpsStates,
     Estimators,
@@ -146,15 +147,6 @@ def _inverse(a: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.column_stack([-(c * a[:, 0] + s * a[:, 1]), s * a[:, 0] - c * a[:, 1], -a[:, 2]])
 
 
-def _rot_z(yaw: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(T, 3, 3) rotations about z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    out = np.zeros((len(yaw), 3, 3))
-    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1] = c, -s, s, c
-    out[:, 2, 2] = 1.0
-    return out
-
-
 @dataclass
 class _Robot:
     """A robot in T trials: where it truly stands and where it believes it stands (planar,
@@ -168,7 +160,7 @@ class _Robot:
         """(..., 3) points of the nominal stop (W) moved with each trial's true pose:
         (T, ..., 3). The robot's turn is about the vertical through its origin."""
         delta = self.true[:, 2] - self.nominal.pose[2]
-        r = _rot_z(delta)
+        r = rot_z(delta)
         rel = points - np.array([*self.nominal.pose[:2], 0.0])
         flat = rel.reshape(-1, 3)
         out = np.einsum("tij,kj->tki", r, flat).reshape(len(delta), *points.shape)
@@ -351,21 +343,21 @@ class BatchRun:
         assert nominal.instrument is not None
         assert nominal.instrument2world is not None
         centre = parent.moved(nominal.instrument)
-        turn = _rot_z(parent.true[:, 2] - nominal.pose[2])
+        turn = rot_z(parent.true[:, 2] - nominal.pose[2])
         return centre, turn @ nominal.instrument2world
 
     def _cubes(self, child: str) -> NDArray[np.float64]:
         """(T, 3, 3) the child's true cubes in W, its assembly's surveying error included."""
         robot = self.robots[child]
         assert robot.nominal.cubes is not None
-        error = np.einsum("tij,tkj->tki", _rot_z(robot.true[:, 2]), self.built[child][0])
+        error = np.einsum("tij,tkj->tki", rot_z(robot.true[:, 2]), self.built[child][0])
         return robot.moved(robot.nominal.cubes) + error
 
     def _leds(self, child: str) -> NDArray[np.float64]:
         """(T, N_led, 3) the child's true LEDs in W."""
         robot = self.robots[child]
         assert robot.nominal.leds is not None
-        error = np.einsum("tij,tkj->tki", _rot_z(robot.true[:, 2]), self.built[child][1])
+        error = np.einsum("tij,tkj->tki", rot_z(robot.true[:, 2]), self.built[child][1])
         return robot.moved(robot.nominal.leds) + error
 
     def _shots(self, child: str) -> NDArray[np.float64]:

@@ -19,7 +19,7 @@ import numpy as np
 from twin.batch.execute import BatchOutcome, BatchRun
 from twin.batch.plan import BatchPlan
 from twin.montecarlo.sources import isolate
-from twin.montecarlo.trial import TrialFailed, TrialResult, TrialSpec
+from twin.montecarlo.trial import TrialFailed, TrialResult, TrialSpec, mm, parent_columns
 from twin.report.reading import planned_visits
 
 DEFAULT_CHUNK_SIZE = 200
@@ -101,24 +101,12 @@ def run_batch_chunk(chunk: BatchChunk) -> list[TrialResult]:
     return [TrialResult(spec, tuple(_rows(spec, outcome, k)), wall) for k, spec in enumerate(specs)]
 
 
-def _mm(value: float) -> float:
-    return 1e3 * float(value) if np.isfinite(value) else math.nan
-
-
 def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]]:
     """The table rows of trial ``k`` of a batch (one per planned visit)."""
-    err = outcome.parent_error[k]
     std = np.sqrt(np.diag(outcome.parent_covariance[k]))
-    trial_level = {
-        "parent_final_dx_mm": _mm(err[0]),
-        "parent_final_dy_mm": _mm(err[1]),
-        "parent_final_dz_mm": _mm(err[2]),
-        "parent_predicted_sx_mm": _mm(std[0]),
-        "parent_predicted_sy_mm": _mm(std[1]),
-        "parent_predicted_sz_mm": _mm(std[2]),
-        "parent_distance_m": float(outcome.distance[k]),
-        "failures": int(outcome.failures[k]),
-    }
+    trial_level = parent_columns(
+        outcome.parent_error[k], std, outcome.distance[k], outcome.failures[k]
+    )
     rows = []
     for (camera, visit), _ in planned_visits(spec.scenario):
         v = outcome.calibrations.get((camera, visit))
@@ -133,15 +121,15 @@ def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]
                 "calibrated": int(made),
                 "distance_travelled_m": float(v.distance[k]) if made else math.nan,
                 "points": int(v.points[k]) if made else 0,
-                "position_error_mm": _mm(v.position_error[k]) if made else math.nan,
+                "position_error_mm": mm(v.position_error[k]) if made else math.nan,
                 "rotation_error_deg": math.degrees(v.rotation_error[k]) if made else math.nan,
                 "world_pixel_mean": float(v.world_pixel[k]) if made else math.nan,
-                "world_error_3d_mean_mm": _mm(v.world_3d[k]) if made else math.nan,
+                "world_error_3d_mean_mm": mm(v.world_3d[k]) if made else math.nan,
                 "local_pixel_mean": float(v.local_pixel[k]) if made else math.nan,
-                "local_error_3d_mean_mm": _mm(v.local_3d[k]) if made else math.nan,
-                "predicted_transfer_rms_mm": _mm(v.predicted_transfer[k]) if made else math.nan,
+                "local_error_3d_mean_mm": mm(v.local_3d[k]) if made else math.nan,
+                "predicted_transfer_rms_mm": mm(v.predicted_transfer[k]) if made else math.nan,
                 "predicted_calibration_rms_mm": (
-                    _mm(v.predicted_calibration[k]) if made else math.nan
+                    mm(v.predicted_calibration[k]) if made else math.nan
                 ),
                 **trial_level,
             }

@@ -183,12 +183,12 @@ def run_montecarlo(
                 units, fn = todo, trial_fn
             n = 0
             for unit in runner.imap_unordered(fn, units):
-                for result in unit if isinstance(unit, list) else [unit]:
-                    table.append(result.rows)
-                    n += 1
-                    if progress:
-                        rate = n / max(time.perf_counter() - t0, 1e-9)
-                        progress(McProgress(done0 + n, len(specs), rate, result.spec))
+                results = unit if isinstance(unit, list) else [unit]
+                table.append(*(result.rows for result in results))
+                n += len(results)
+                if progress:
+                    rate = n / max(time.perf_counter() - t0, 1e-9)
+                    progress(McProgress(done0 + n, len(specs), rate, results[-1].spec))
             elapsed = time.perf_counter() - t0
             rows = table.finish(configs)
     finally:

@@ -116,12 +116,30 @@ def run_trial(spec: TrialSpec) -> TrialResult:
     return TrialResult(spec, tuple(rows), time.perf_counter() - t0)
 
 
-def _mm(value: Any) -> float:
+def mm(value: Any) -> float:
+    """Metres -> mm; None -> NaN."""
     return math.nan if value is None else 1e3 * float(value)
 
 
 def _get(d: dict[str, Any] | None, key: str) -> float:
     return math.nan if d is None or d.get(key) is None else float(d[key])
+
+
+def parent_columns(
+    error_m: Any, std_m: Any, distance_m: float, failures: int
+) -> dict[str, float | int]:
+    """The columns every row of a trial shares: the parent's final error (3,) and its
+    predicted standard deviations (3,), m, its travel, m, and the trial's failures."""
+    return {
+        "parent_final_dx_mm": mm(error_m[0]),
+        "parent_final_dy_mm": mm(error_m[1]),
+        "parent_final_dz_mm": mm(error_m[2]),
+        "parent_predicted_sx_mm": mm(std_m[0]),
+        "parent_predicted_sy_mm": mm(std_m[1]),
+        "parent_predicted_sz_mm": mm(std_m[2]),
+        "parent_distance_m": float(distance_m),
+        "failures": int(failures),
+    }
 
 
 def trial_rows(
@@ -132,16 +150,8 @@ def trial_rows(
     predicted = {(p.camera, p.visit): p for p in predictions}
     err = final.error_m if final is not None else np.full(3, np.nan)
     std = np.sqrt(np.diag(final.covariance_m2)) if final is not None else np.full(3, np.nan)
-    trial_level = {
-        "parent_final_dx_mm": _mm(err[0]),
-        "parent_final_dy_mm": _mm(err[1]),
-        "parent_final_dz_mm": _mm(err[2]),
-        "parent_predicted_sx_mm": _mm(std[0]),
-        "parent_predicted_sy_mm": _mm(std[1]),
-        "parent_predicted_sz_mm": _mm(std[2]),
-        "parent_distance_m": final.distance_travelled_m if final is not None else math.nan,
-        "failures": int(sum(results["failures"].values())),
-    }
+    distance = final.distance_travelled_m if final is not None else math.nan
+    trial_level = parent_columns(err, std, distance, sum(results["failures"].values()))
     rows = []
     for (camera, visit), _ in planned_visits(spec.scenario):
         c = made.get((camera, visit))
@@ -165,8 +175,8 @@ def trial_rows(
                 "world_error_3d_mean_mm": _get(world, "error_3d_mean_mm"),
                 "local_pixel_mean": _get(local, "pixel_mean"),
                 "local_error_3d_mean_mm": _get(local, "error_3d_mean_mm"),
-                "predicted_transfer_rms_mm": _mm(p.transfer_rms_m) if p else math.nan,
-                "predicted_calibration_rms_mm": _mm(p.calibration_rms_m) if p else math.nan,
+                "predicted_transfer_rms_mm": mm(p.transfer_rms_m) if p else math.nan,
+                "predicted_calibration_rms_mm": mm(p.calibration_rms_m) if p else math.nan,
                 **trial_level,
             }
         )
