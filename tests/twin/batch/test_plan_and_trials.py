@@ -48,11 +48,12 @@ def test_the_plan_is_the_campaigns(hall_plan):
     assert isinstance(hall_plan.steps[-1], Calibrate)
 
 
+@pytest.mark.parametrize("estimators", [TrialByTrial(), Vectorised()], ids=["scalar", "arrays"])
 @pytest.mark.parametrize("name", ["smoke", "hall"])
-def test_without_noise_every_camera_is_recovered_exactly(name, smoke_plan, hall_plan):
+def test_without_noise_every_camera_is_recovered_exactly(name, estimators, smoke_plan, hall_plan):
     plan = smoke_plan if name == "smoke" else hall_plan
     quiet = plan.scenario.without_noise().noise
-    out = BatchRun(plan, [1, 2], noise=quiet, estimators=TrialByTrial()).run()
+    out = BatchRun(plan, [1, 2], noise=quiet, estimators=estimators).run()
     assert len(out.calibrations) == len(plan.calibrations)
     for visit, v in out.calibrations.items():
         assert v.calibrated.all(), visit
