@@ -25,7 +25,7 @@ prism) and leaves the sequence unchanged: the caller can count it, measure again
 from __future__ import annotations
 
 import enum
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,6 +82,27 @@ class CpsStep:
             arr = np.array(getattr(self, name), dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+
+
+def child_index(index: Mapping[str, int], name: str) -> int:
+    """A child's place in the state; a named error for an unknown child."""
+    try:
+        return index[name]
+    except KeyError:
+        raise ValueError(f"unknown child {name!r}; children are {list(index)}") from None
+
+
+def check_step_children(index: Mapping[str, int], names: Sequence[str], minimum: int) -> None:
+    """Refuse a step that observes fewer than ``minimum`` children, an unknown child, or
+    one child twice."""
+    if len(names) < minimum:
+        raise ValueError(
+            f"this step needs at least {minimum} child observation(s), got {len(names)}"
+        )
+    for name in names:
+        child_index(index, name)
+    if len(set(names)) != len(names):
+        raise ValueError(f"a child is observed twice in one step: {list(names)}")
 
 
 class CpsSequence:
@@ -252,26 +273,13 @@ class CpsSequence:
 
     # -- internals -----------------------------------------------------------------------
     def _child_index(self, name: str) -> int:
-        try:
-            return self._index[name]
-        except KeyError:
-            raise ValueError(
-                f"unknown child {name!r}; children are {list(self._children)}"
-            ) from None
+        return child_index(self._index, name)
 
     def _check_observations(
         self, observations: Sequence[ChildObservation], minimum: int
     ) -> tuple[ChildObservation, ...]:
         obs = tuple(observations)
-        if len(obs) < minimum:
-            raise ValueError(
-                f"this step needs at least {minimum} child observation(s), got {len(obs)}"
-            )
-        names = [o.child for o in obs]
-        for name in names:
-            self._child_index(name)
-        if len(set(names)) != len(names):
-            raise ValueError(f"a child is observed twice in one step: {names}")
+        check_step_children(self._index, [o.child for o in obs], minimum)
         return obs
 
     def _stamp(self, obs: tuple[ChildObservation, ...], timestamp: float | None) -> float:

@@ -36,7 +36,7 @@ from twin.localization.input_checks_batch import block_diagonal
 from twin.localization.observation_batch import ChildObservationBatch
 from twin.localization.pose import ParentPose
 from twin.localization.pose_batch import CpsSolutionBatch, ParentPoseBatch
-from twin.localization.sequence import SOLVERS
+from twin.localization.sequence import SOLVERS, check_step_children, child_index
 from twin.localization.wls_batch import solve_wls_batch
 
 
@@ -246,31 +246,19 @@ class CpsBatch:
 
     # -- internals -----------------------------------------------------------------------
     def _child_index(self, name: str) -> int:
-        try:
-            return self._index[name]
-        except KeyError:
-            raise ValueError(
-                f"unknown child {name!r}; children are {list(self._children)}"
-            ) from None
+        return child_index(self._index, name)
 
     def _check_observations(
         self, observations: Sequence[ChildObservationBatch], minimum: int
     ) -> tuple[ChildObservationBatch, ...]:
         obs = tuple(observations)
-        if len(obs) < minimum:
-            raise ValueError(
-                f"this step needs at least {minimum} child observation(s), got {len(obs)}"
-            )
-        names = [o.child for o in obs]
+        check_step_children(self._index, [o.child for o in obs], minimum)
         for o in obs:
-            self._child_index(o.child)
             if o.n_trials != self.n_trials:
                 raise ValueError(
                     f"the observation of {o.child!r} has {o.n_trials} trials, the batch "
                     f"{self.n_trials}"
                 )
-        if len(set(names)) != len(names):
-            raise ValueError(f"a child is observed twice in one step: {names}")
         return obs
 
     def _stamp(self, obs: tuple[ChildObservationBatch, ...], timestamp: float | None) -> float:
