@@ -169,9 +169,15 @@ class Estimators(abc.ABC):
 
     @abc.abstractmethod
     def cps(
-        self, trials: int, children: Sequence[str], solver: str, false_alarm_rate: float | None
+        self,
+        trials: int,
+        children: Sequence[str],
+        solver: str,
+        false_alarm_rate: float | None,
+        child_creep: float = 0.0,
     ) -> CpsStates:
-        """A new CPS state for ``trials`` trials (the parent at W's origin)."""
+        """A new CPS state for ``trials`` trials (the parent at W's origin); ``child_creep``
+        as :class:`twin.localization.sequence.CpsSequence`'s, m."""
 
     @abc.abstractmethod
     def leds(
@@ -246,12 +252,20 @@ def calibrate_one(
 
 # -- the reference: the campaign's scalar code, trial by trial -------------------------------------
 class _ScalarCps(CpsStates):
-    def __init__(self, trials: int, children: Sequence[str], solver: str, rate: float | None):
+    def __init__(
+        self,
+        trials: int,
+        children: Sequence[str],
+        solver: str,
+        rate: float | None,
+        creep: float = 0.0,
+    ):
         self.rate = rate
         # The consistency test is made here, not by the sequence: a trial that fails it
         # keeps its solution (the campaign would measure again; the batch counts it).
         self.sequences = [
-            CpsSequence(list(children), solver=solver, false_alarm_rate=None) for _ in range(trials)
+            CpsSequence(list(children), solver=solver, false_alarm_rate=None, child_creep=creep)
+            for _ in range(trials)
         ]
 
     def children_moved(self, child: str, observations: Observations) -> None:
@@ -310,8 +324,8 @@ class TrialByTrial(Estimators):
             np.array(out["bad"]),
         )
 
-    def cps(self, trials, children, solver, false_alarm_rate) -> CpsStates:
-        return _ScalarCps(trials, children, solver, false_alarm_rate)
+    def cps(self, trials, children, solver, false_alarm_rate, child_creep=0.0) -> CpsStates:
+        return _ScalarCps(trials, children, solver, false_alarm_rate, child_creep)
 
     def leds(self, observations, marker):
         leds, covs = [], []

@@ -7,11 +7,12 @@ fidelity:
 
 - the robots' stopping error: each drive ends at the goal, moved by the base's error of
   localisation (where it truly stood against where it believed it stood) and by the
-  scenario's stopping error;
+  scenario's stopping error; the standing children's creep while the parent drives;
 - the marker assemblies' surveying error (each child's own, for the whole trial);
-- the total station's distance and angle noise in its (tilted) frame, each shot levelled
-  with its own noisy inclination reading, and rounded to the output resolution;
-- the LED detection noise of the geometric fidelity (``noise.led_detection_px``).
+- the total station's distance, angle and pointing noise in its (tilted) frame, each shot
+  levelled with its own noisy inclination reading, and rounded to the output resolution;
+- the LED detection noise of the geometric fidelity (``noise.led_detection_px``) and the
+  real camera's centroid error (``noise.led_centroid_px``).
 
 The estimators are the campaign's (:mod:`twin.batch.estimators`): marker fits and centroids,
 CPS with its joint covariance and consistency tests, LED positions from the marker's pose,
@@ -197,6 +198,8 @@ class VisitOutcome:
         points: LED points used (fewer where a trial gave up stops). distance: the
             parent's travel at the calibration, m.
         position_error: m. rotation_error: rad (NaN where not calibrated).
+        position_offset: (T, 3) calibrated minus true camera centre in W, m (NaN where not
+            calibrated).
         world_pixel, world_3d: Table III against the reference set (px, m), NaN without one.
         local_pixel, local_3d: Table III against the visit's own data (px, m).
         predicted_transfer, predicted_calibration: the analytic prediction's RMS 3D
@@ -208,6 +211,7 @@ class VisitOutcome:
     distance: NDArray[np.float64]
     position_error: NDArray[np.float64]
     rotation_error: NDArray[np.float64]
+    position_offset: NDArray[np.float64]
     world_pixel: NDArray[np.float64]
     world_3d: NDArray[np.float64]
     local_pixel: NDArray[np.float64]
@@ -269,7 +273,7 @@ class BatchRun:
         # The instrument advertises the scenario's full noise: the estimators weigh by it.
         self.advertised: TotalStationSpec = sc.noise.total_station.spec()
         self.advertised_tilt: InclinometerSpec = sc.noise.inclinometer.spec()
-        self.advertised_pixel_px = sc.noise.led_detection_px
+        self.advertised_pixel_px = sc.noise.projected_led_px
         self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
         n_leds = len(self.marker.leds_body)
@@ -292,7 +296,9 @@ class BatchRun:
             for child in plan.children
         }
         solver = "wls" if len(plan.children) > 1 else "closed_form"
-        self.cps: CpsStates = estimators.cps(t, plan.children, solver, FALSE_ALARM_RATE)
+        self.cps: CpsStates = estimators.cps(
+            t, plan.children, solver, FALSE_ALARM_RATE, sc.campaign.child_creep_m
+        )
         self.placed: dict[str, tuple[Observations, ParentEstimates]] = {}
         self.datasets: dict[tuple[str, str, int], _DataSet] = {}
         self.fixes: list[tuple[ParentEstimates, NDArray[np.float64]]] = []
@@ -334,6 +340,11 @@ class BatchRun:
         true[:, :2] += stop.sigma_xy * self.draws.take(2)
         true[:, 2] += stop.sigma_yaw * self.draws.take(1)[:, 0]
         robot.true, robot.believed, robot.nominal = true, believed, step.truth
+        creep = self.noise.child_creep_m
+        if step.robot == self.plan.parent and creep > 0:
+            # The standing children creep while the parent drives (twin.sim.rig.creep).
+            for child in self.plan.children:
+                self.robots[child].true[:, :2] += creep * self.draws.take(2)
 
     # -- shots -----------------------------------------------------------------------------
     def _instrument(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -434,7 +445,7 @@ class BatchRun:
         seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
         lost = ~seen.reshape(self.trials, -1).all(axis=1)
         self.failures += lost
-        pixels = pixels + self.noise.led_detection_px * self.draws.take(true.shape[1], 2)
+        pixels = pixels + self.noise.projected_led_px * self.draws.take(true.shape[1], 2)
         world = np.where(lost[:, None, None], np.nan, world)
         pixels = np.where(lost[:, None, None], np.nan, pixels)
         data = self._dataset(step)
@@ -470,6 +481,9 @@ class BatchRun:
             distance=self.distance.copy(),
             position_error=position_error,
             rotation_error=rotation_error,
+            position_offset=np.where(
+                cal.calibrated[:, None], cal.position - truth.position, np.nan
+            ),
             world_pixel=world[0],
             world_3d=world[1],
             local_pixel=local[0],

@@ -53,8 +53,17 @@ from twin.localization.sequence_batch import CpsBatch
 
 
 class _BatchCps(CpsStates):
-    def __init__(self, trials: int, children: Sequence[str], solver: str, rate: float | None):
-        self.sequence = CpsBatch(list(children), trials, solver=solver, false_alarm_rate=rate)
+    def __init__(
+        self,
+        trials: int,
+        children: Sequence[str],
+        solver: str,
+        rate: float | None,
+        creep: float = 0.0,
+    ):
+        self.sequence = CpsBatch(
+            list(children), trials, solver=solver, false_alarm_rate=rate, child_creep=creep
+        )
 
     def children_moved(self, child: str, observations: Observations) -> None:
         self.sequence.children_moved([_observation(child, observations)])
@@ -99,8 +108,8 @@ class Vectorised(Estimators):
             obs.marker_inconsistent(false_alarm_rate),
         )
 
-    def cps(self, trials, children, solver, false_alarm_rate) -> CpsStates:
-        return _BatchCps(trials, children, solver, false_alarm_rate)
+    def cps(self, trials, children, solver, false_alarm_rate, child_creep=0.0) -> CpsStates:
+        return _BatchCps(trials, children, solver, false_alarm_rate, child_creep)
 
     def leds(self, observations, marker):
         pose = MarkerPoseBatch(

@@ -142,7 +142,10 @@ class Campaign:
         # With a noise-free instrument, consistency tests have no noise to be tested against.
         self.false_alarm_rate = 1e-4 if solver == "wls" else None
         self.cps = CpsSequence(
-            list(rig.children), solver=solver, false_alarm_rate=self.false_alarm_rate
+            list(rig.children),
+            solver=solver,
+            false_alarm_rate=self.false_alarm_rate,
+            child_creep=self.settings.child_creep_m,
         )
         marker = scenario.marker.assembly()
         self.travel = Travel(

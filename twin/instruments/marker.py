@@ -50,12 +50,21 @@ class MarkerAssembly:
     Attributes:
         cubes_body: (3, 3) corner-cube (prism) reflection points, m.
         leds_body: (4, 3) LED centres, m.
+        survey_sigma: how well this geometry is known: standard deviation of each
+            coordinate of each cube and LED, m (default 0: exactly). The marker fit's
+            consistency test allows for it; the pose and LED covariances do not (it is a
+            fixed error of each built assembly, not noise of the shots).
     """
 
     cubes_body: NDArray[np.float64] = field(default_factory=_default_cubes)
     leds_body: NDArray[np.float64] = field(default_factory=_default_leds)
+    survey_sigma: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.survey_sigma) and self.survey_sigma >= 0):
+            raise ValueError(
+                f"survey_sigma must be finite and non-negative (m), got {self.survey_sigma}"
+            )
         cubes = np.array(self.cubes_body, dtype=float)
         leds = np.array(self.leds_body, dtype=float)
         if cubes.shape != (3, 3):

@@ -146,7 +146,10 @@ def fit_marker_pose(
         # Orthonormal basis of the residual space (left null space of the pose Jacobian).
         basis = np.linalg.svd(jac, full_matrices=True)[0][:, 6:]
         z = basis.T @ residual.reshape(9)
-        object.__setattr__(pose, "chi2", chi2_statistic(z, basis.T @ sigma @ basis))
+        # The surveyed geometry's own error leaves a residual too (it is a fixed error of
+        # each child, not noise of the shots: the pose covariance leaves it out).
+        tested = sigma + marker.survey_sigma**2 * np.eye(9)
+        object.__setattr__(pose, "chi2", chi2_statistic(z, basis.T @ tested @ basis))
     return pose
 
 
@@ -167,7 +170,7 @@ def marker_consistency_chi2(
         (...,) chi-square values.
     """
     m = np.asarray(cubes_measured, dtype=float)
-    cov = np.asarray(cube_covariances, dtype=float)
+    cov = np.asarray(cube_covariances, dtype=float) + marker.survey_sigma**2 * np.eye(3)
     b = marker.cubes_body
     diff = np.stack([m[..., i, :] - m[..., j, :] for i, j in _SIDES], axis=-2)  # (..., 3, 3)
     length = np.linalg.norm(diff, axis=-1)

@@ -181,7 +181,9 @@ def fit_marker_pose_batch(
         basis = np.linalg.svd(jac, full_matrices=True)[0][..., :, 6:]  # (..., 9, 3)
         basis_t = np.swapaxes(basis, -1, -2)
         z = (basis_t @ residual.reshape(*shape, 9, 1))[..., 0]
-        chi2 = chi2_statistic_batch(z, basis_t @ sigma @ basis)
+        # The surveyed geometry's own error (see fit_marker_pose).
+        tested = sigma + marker.survey_sigma**2 * np.eye(9)
+        chi2 = chi2_statistic_batch(z, basis_t @ tested @ basis)
     return MarkerPoseBatch(r, t, cov, rms, chi2)
 
 

@@ -1,10 +1,13 @@
 """Noise and output quantisation of the total station, and the covariance they imply.
 
 Distance noise has standard deviation ``const + ppm * 1e-6 * d``; each angle has
-``angle_sigma``. The instrument rounds its output to ``distance_resolution`` and
-``angle_resolution``; rounding adds a uniform error of variance ``resolution**2 / 12``,
-which :func:`polar_covariance` includes by default. All arrays are (..., 3) polar triplets
-(d m, hz rad, v rad) in the convention of :mod:`twin.instruments.polar`.
+``angle_sigma``, and the pointing error on the prism (``pointing_sigma``, m across the line
+of sight) adds ``pointing_sigma / (d sin v)`` to the horizontal angle and
+``pointing_sigma / d`` to the zenith angle, in quadrature. The instrument rounds its
+output to ``distance_resolution`` and ``angle_resolution``; rounding adds a uniform error of
+variance ``resolution**2 / 12``, which :func:`polar_covariance` includes by default. All
+arrays are (..., 3) polar triplets (d m, hz rad, v rad) in the convention of
+:mod:`twin.instruments.polar`.
 """
 
 from __future__ import annotations
@@ -15,6 +18,10 @@ from numpy.typing import ArrayLike, NDArray
 from twin.instruments.polar import TWO_PI, polar2cartesian_jacobian
 from twin.instruments.tilt import tilt_covariance
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+
+MIN_POINTING_DISTANCE = 0.1
+"""Below this distance (m, slope or horizontal) the pointing error's angle is taken at it,
+so that a point straight above the instrument does not get an infinite angle error."""
 
 
 def distance_sigma(distance: ArrayLike, spec: TotalStationSpec) -> NDArray[np.float64]:
@@ -28,7 +35,13 @@ def polar_sigmas(polar: ArrayLike, spec: TotalStationSpec) -> NDArray[np.float64
     p = np.asarray(polar, dtype=float)
     sd = distance_sigma(p[..., 0], spec)
     sa = np.full_like(sd, spec.angle_sigma)
-    return np.stack([sd, sa, sa], axis=-1)
+    if spec.pointing_sigma == 0.0:
+        return np.stack([sd, sa, sa], axis=-1)
+    d = np.maximum(p[..., 0], MIN_POINTING_DISTANCE)
+    horizontal = np.maximum(d * np.abs(np.sin(p[..., 2])), MIN_POINTING_DISTANCE)
+    s_hz = np.hypot(sa, spec.pointing_sigma / horizontal)
+    s_v = np.hypot(sa, spec.pointing_sigma / d)
+    return np.stack([sd, s_hz, s_v], axis=-1)
 
 
 def polar_covariance(

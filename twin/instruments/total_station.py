@@ -36,6 +36,10 @@ class TotalStationSpec:
         angle_resolution: output resolution of the angles, rad (0 = no quantisation).
         range_min, range_max: measurable slope distances, m.
         aim_cone: half-angle of the automatic aim's search cone, rad.
+        pointing_sigma: where on the prism the instrument measures, m: the automatic aim's
+            centring of the corner cube and the cube's own shift when seen off its axis, as
+            a sideways error of each shot that does not shrink with the distance (standard
+            deviation on each axis across the line of sight). Not in Table I; default 0.
     """
 
     distance_sigma_const: float = 2e-3
@@ -46,6 +50,7 @@ class TotalStationSpec:
     range_min: float = 1.3
     range_max: float = 2200.0
     aim_cone: float = 5.0 * math.pi / 180.0
+    pointing_sigma: float = 0.0
 
     def __post_init__(self) -> None:
         _check_positive(
@@ -59,8 +64,10 @@ class TotalStationSpec:
                 "range_min",
                 "range_max",
                 "aim_cone",
+                "pointing_sigma",
             ),
             allow_zero=(
+                "pointing_sigma",
                 "distance_sigma_const",
                 "distance_sigma_ppm",
                 "angle_sigma",

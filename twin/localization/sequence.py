@@ -105,6 +105,25 @@ def check_step_children(index: Mapping[str, int], names: Sequence[str], minimum:
         raise ValueError(f"a child is observed twice in one step: {list(names)}")
 
 
+def check_creep(creep: float) -> float:
+    """``creep`` (m) if finite and non-negative; ValueError naming it otherwise."""
+    if not (np.isfinite(creep) and creep >= 0):
+        raise ValueError(f"child_creep must be finite and non-negative (m), got {creep}")
+    return float(creep)
+
+
+def add_creep(covariance: NDArray[np.float64], known: NDArray[np.bool_], creep: float) -> None:
+    """Add a standing child's creep to the joint covariance, in place: ``creep**2`` (m^2)
+    on the x and y variances of every child in ``known`` (N,). ``covariance``: (..., n, n)
+    joint covariances (``n = 4 + 3N``), one per trial or one."""
+    if creep <= 0:
+        return
+    for k in np.flatnonzero(known):
+        for axis in (0, 1):
+            i = 4 + 3 * k + axis
+            covariance[..., i, i] += creep**2
+
+
 class CpsSequence:
     """Joint estimate of a parent and its children along a CPS run, with the step record.
 
@@ -116,6 +135,9 @@ class CpsSequence:
         min_baseline, max_yaw_std: passed to the solver (see :mod:`.input_checks`).
         false_alarm_rate: passed to the solver: probability that consistent data raise
             :class:`InconsistentChildrenError` at a parent step; None switches it off.
+        child_creep: how far a standing child may move on each horizontal axis while the
+            parent drives, m (standard deviation): added to every placed child's position
+            covariance at each parent step, before the solve (default 0).
     """
 
     def __init__(
@@ -127,6 +149,7 @@ class CpsSequence:
         min_baseline: float = DEFAULT_MIN_BASELINE,
         max_yaw_std: float = DEFAULT_MAX_YAW_STD,
         false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+        child_creep: float = 0.0,
     ) -> None:
         names = tuple(children)
         if len(names) < 2:
@@ -142,6 +165,7 @@ class CpsSequence:
         self._min_baseline = min_baseline
         self._max_yaw_std = max_yaw_std
         self._false_alarm_rate = check_false_alarm_rate(false_alarm_rate)
+        self._creep = check_creep(child_creep)
         n = 4 + 3 * len(names)
         self._state = np.full(n, np.nan)
         self._state[:4] = pose.vector
@@ -241,6 +265,7 @@ class CpsSequence:
                 f"children {unknown} were never placed in the world; measure them with "
                 "children_moved before the parent moves"
             )
+        add_creep(self._covariance, self._known, self._creep)
         cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
         world = self._state[cols].reshape(-1, 3)
         level = np.array([o.point_level for o in obs])

@@ -36,7 +36,13 @@ from twin.localization.input_checks_batch import block_diagonal
 from twin.localization.observation_batch import ChildObservationBatch
 from twin.localization.pose import ParentPose
 from twin.localization.pose_batch import CpsSolutionBatch, ParentPoseBatch
-from twin.localization.sequence import SOLVERS, check_step_children, child_index
+from twin.localization.sequence import (
+    SOLVERS,
+    add_creep,
+    check_creep,
+    check_step_children,
+    child_index,
+)
 from twin.localization.wls_batch import solve_wls_batch
 
 
@@ -57,6 +63,7 @@ class CpsBatch:
         min_baseline, max_yaw_std: passed to the solver (see :mod:`.input_checks`).
         false_alarm_rate: passed to the solver: probability that consistent data are
             flagged inconsistent at a parent step; None switches the test off.
+        child_creep: as :class:`twin.localization.sequence.CpsSequence`'s, m.
     """
 
     def __init__(
@@ -69,6 +76,7 @@ class CpsBatch:
         min_baseline: float = DEFAULT_MIN_BASELINE,
         max_yaw_std: float = DEFAULT_MAX_YAW_STD,
         false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+        child_creep: float = 0.0,
     ) -> None:
         names = tuple(children)
         if len(names) < 2:
@@ -93,6 +101,7 @@ class CpsBatch:
         self._min_baseline = min_baseline
         self._max_yaw_std = max_yaw_std
         self._false_alarm_rate = check_false_alarm_rate(false_alarm_rate)
+        self._creep = check_creep(child_creep)
         n = 4 + 3 * len(names)
         self._state = np.full((n_trials, n), np.nan)
         self._state[:, :4] = initial_pose.vector
@@ -214,6 +223,7 @@ class CpsBatch:
                 "children_moved before the parent moves"
             )
         n_trials, n = self._state.shape
+        add_creep(self._covariance, self._known, self._creep)
         cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
         world = self._state[:, cols].reshape(n_trials, -1, 3)
         level = np.stack([o.point_level for o in obs], axis=1)

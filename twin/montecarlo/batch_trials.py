@@ -19,7 +19,14 @@ import numpy as np
 from twin.batch.execute import BatchOutcome, BatchRun
 from twin.batch.plan import BatchPlan
 from twin.montecarlo.sources import isolate
-from twin.montecarlo.trial import TrialFailed, TrialResult, TrialSpec, mm, parent_columns
+from twin.montecarlo.trial import (
+    TrialFailed,
+    TrialResult,
+    TrialSpec,
+    mm,
+    offset_columns,
+    parent_columns,
+)
 from twin.report.reading import planned_visits
 
 DEFAULT_CHUNK_SIZE = 200
@@ -123,6 +130,7 @@ def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]
                 "points": int(v.points[k]) if made else 0,
                 "position_error_mm": mm(v.position_error[k]) if made else math.nan,
                 "rotation_error_deg": math.degrees(v.rotation_error[k]) if made else math.nan,
+                **offset_columns(1e3 * v.position_offset[k] if made else np.full(3, np.nan)),
                 "world_pixel_mean": float(v.world_pixel[k]) if made else math.nan,
                 "world_error_3d_mean_mm": mm(v.world_3d[k]) if made else math.nan,
                 "local_pixel_mean": float(v.local_pixel[k]) if made else math.nan,

@@ -15,16 +15,28 @@ ALL = "all"
 SOURCES: dict[str, str] = {
     "distance": "total-station distance noise and its output rounding",
     "angle": "total-station angle noise and its output rounding",
+    "pointing": "where on the prism the total station measures "
+    "(noise.total_station.pointing_sigma)",
     "inclination": "inclinometer noise",
     "led_detection": "LED detection in the image (geometric: noise.led_detection_px; "
     "render: the camera's sensor noise)",
+    "led_centroid": "the real camera's LED centroid error (noise.led_centroid_px)",
     "stopping": "robot stopping error and wheel odometry",
+    "creep": "standing children moving while the parent drives (noise.child_creep_m)",
     "marker": "error of the marker assembly's geometry (noise.marker_geometry_m)",
 }
 """Each source by name, with what it switches on."""
 
-_DISTANCE = ("distance_sigma_const", "distance_sigma_ppm", "distance_resolution")
-_ANGLE = ("angle_sigma", "angle_resolution")
+_TOTAL_STATION = {
+    "distance": ("distance_sigma_const", "distance_sigma_ppm", "distance_resolution"),
+    "angle": ("angle_sigma", "angle_resolution"),
+    "pointing": ("pointing_sigma",),
+}
+_NOISE_KEY = {
+    "led_centroid": "led_centroid_px",
+    "creep": "child_creep_m",
+    "marker": "marker_geometry_m",
+}
 
 
 def configurations(budget: bool) -> tuple[str, ...]:
@@ -46,8 +58,8 @@ def isolate(scenario: Scenario, source: str) -> Scenario:
     full, off = scenario.noise, quiet.noise
     noise = off
     cameras = quiet.cameras
-    if source in ("distance", "angle"):
-        keys = _DISTANCE if source == "distance" else _ANGLE
+    if source in _TOTAL_STATION:
+        keys = _TOTAL_STATION[source]
         ts = off.total_station.model_copy(update={k: getattr(full.total_station, k) for k in keys})
         noise = off.model_copy(update={"total_station": ts})
     elif source == "inclination":
@@ -57,6 +69,24 @@ def isolate(scenario: Scenario, source: str) -> Scenario:
         cameras = scenario.cameras
     elif source == "stopping":
         noise = off.model_copy(update={"stopping": full.stopping, "odometry": full.odometry})
-    elif source == "marker":
-        noise = off.model_copy(update={"marker_geometry_m": full.marker_geometry_m})
+    elif source in _NOISE_KEY:
+        key = _NOISE_KEY[source]
+        noise = off.model_copy(update={key: getattr(full, key)})
     return quiet.model_copy(update={"noise": noise, "cameras": cameras})
+
+
+UNPREDICTED: dict[str, str] = {
+    "creep": "the campaign's CPS allows a standing child less creep (campaign.child_creep_m) "
+    "than the twin simulates",
+    "marker": "an assembly's surveying error is shared by every point of its child",
+}
+"""Sources the campaign's covariance propagation does not model, and why."""
+
+
+def unpredicted(scenario: Scenario) -> list[str]:
+    """The sources of :data:`UNPREDICTED` that ``scenario`` switches on."""
+    on = {
+        "creep": scenario.noise.child_creep_m > scenario.campaign.child_creep_m,
+        "marker": scenario.noise.marker_geometry_m > 0,
+    }
+    return [name for name in UNPREDICTED if on[name]]

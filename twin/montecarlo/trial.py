@@ -31,6 +31,9 @@ COLUMNS: dict[str, type] = {
     "points": int,
     "position_error_mm": float,
     "rotation_error_deg": float,
+    "position_dx_mm": float,
+    "position_dy_mm": float,
+    "position_dz_mm": float,
     "world_pixel_mean": float,
     "world_error_3d_mean_mm": float,
     "local_pixel_mean": float,
@@ -110,7 +113,7 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 f"--strategy {spec.strategy}"
             ) from exc
         messages = read_log(f"{tmp}/log.mcap").messages
-        pixel_noise = spec.scenario.noise.led_detection_px
+        pixel_noise = spec.scenario.noise.projected_led_px
         predictions, final = predictions_from_log(messages, pixel_noise)
     rows = trial_rows(spec, results, predictions, final)
     return TrialResult(spec, tuple(rows), time.perf_counter() - t0)
@@ -123,6 +126,20 @@ def mm(value: Any) -> float:
 
 def _get(d: dict[str, Any] | None, key: str) -> float:
     return math.nan if d is None or d.get(key) is None else float(d[key])
+
+
+def offset_columns(offset_mm: Any) -> dict[str, float]:
+    """The columns of a calibrated camera's (3,) centre minus the true one in W, mm (NaN
+    where not calibrated): what the repeatability of a camera visited twice is made of."""
+    return {f"position_d{axis}_mm": float(offset_mm[i]) for i, axis in enumerate("xyz")}
+
+
+def _offset_mm(calibration: dict[str, Any] | None) -> Any:
+    """(3,) calibrated minus true camera centre, mm, of a result's calibration entry."""
+    if calibration is None or calibration.get("truth") is None:
+        return np.full(3, np.nan)
+    estimated = np.asarray(calibration["parameters"]["position_mm"], dtype=float)
+    return estimated - np.asarray(calibration["truth"]["position_mm"], dtype=float)
 
 
 def parent_columns(
@@ -171,6 +188,7 @@ def trial_rows(
                 "points": c["points"] if c else 0,
                 "position_error_mm": _get(truth, "position_error_mm"),
                 "rotation_error_deg": _get(truth, "rotation_error_deg"),
+                **offset_columns(_offset_mm(c)),
                 "world_pixel_mean": _get(world, "pixel_mean"),
                 "world_error_3d_mean_mm": _get(world, "error_3d_mean_mm"),
                 "local_pixel_mean": _get(local, "pixel_mean"),

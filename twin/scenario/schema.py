@@ -419,10 +419,15 @@ class MarkerConfig(Frozen):
     Attributes:
         cubes: three corner-cube reflection points, m.
         leds: four LED centres, m.
+        survey_sigma_m: how well these coordinates are known, m (standard deviation of
+            each): the campaign's marker fit weighs and tests the cube shots with it. What
+            the twin simulates is ``noise.marker_geometry_m``; set this to what you know of
+            your assembly. Default 0: exactly.
     """
 
     cubes: tuple[MarkerPoint, MarkerPoint, MarkerPoint] = _ROWS3  # type: ignore[assignment]
     leds: tuple[MarkerPoint, MarkerPoint, MarkerPoint, MarkerPoint] = _ROWS4  # type: ignore[assignment]
+    survey_sigma_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
 
     @field_validator("cubes")
     @classmethod
@@ -444,6 +449,7 @@ class MarkerConfig(Frozen):
         return MarkerAssembly(
             cubes_body=np.asarray(self.cubes, dtype=float),
             leds_body=np.asarray(self.leds, dtype=float),
+            survey_sigma=self.survey_sigma_m,
         )
 
 
@@ -504,7 +510,9 @@ TotalStationConfig = _model_from_dataclass(
     Ranges: the paper's instrument (Table I) has 2 mm + 2 ppm and 5 arc-seconds, and
     builders' instruments are a few times worse; noise up to 5 cm, 100 ppm and 1e-3 rad
     (206 arc-seconds), and resolutions up to 1 cm and 1e-3 rad, leave room for stress
-    tests (the campaign already fails at a tenth of them). ``range_min`` is 0.1 m to 100 m;
+    tests (the campaign already fails at a tenth of them). ``pointing_sigma`` (not in
+    Table I, default 0) up to 2 cm: a corner cube a centimetre off its axis of aim.
+    ``range_min`` is 0.1 m to 100 m;
     ``range_max`` at most 10 km, beyond the diagonal of the largest space (7.1 km; the
     paper's instrument reaches 2.2 km). ``aim_cone`` is 0.01 rad (0.6 deg, a narrow
     automatic aim) up to pi/2 rad.
@@ -518,6 +526,7 @@ TotalStationConfig = _model_from_dataclass(
         "range_min": Field(ge=0.1, le=100.0),
         "range_max": Field(gt=0.0, le=10_000.0),
         "aim_cone": Field(ge=0.01, lt=0.5 * math.pi),
+        "pointing_sigma": Field(ge=0.0, le=0.02),
     },
 )
 
@@ -595,6 +604,14 @@ class Noise(Frozen):
             LED of a built marker assembly from the geometry the campaign uses (``[marker]``),
             m: how well the assembly was surveyed. Each child's assembly gets its own error,
             drawn once per run. Default 0: the assembly is exactly as specified.
+        led_centroid_px: standard deviation of each coordinate of a real camera's LED
+            centroid beyond what the twin's images and detector reproduce (interlaced or
+            analogue capture, compression, blooming, the LED's shape), px, added to every
+            detection at every fidelity. Default 0: the camera is as the twin renders it.
+        child_creep_m: standard deviation of each horizontal axis of a standing child's
+            shift while the parent drives to its next station, m (its tyres settling, its
+            mast leaning: :mod:`twin.sim.rig.creep`). It shows in CPS, which measures the
+            child before and after the parent's drive. Default 0: children stand still.
     """
 
     total_station: TotalStationConfig = TotalStationConfig()  # type: ignore[valid-type]
@@ -603,6 +620,16 @@ class Noise(Frozen):
     stopping: StoppingConfig = StoppingConfig()
     led_detection_px: Annotated[float, Field(ge=0.0, le=10.0)] = 0.05
     marker_geometry_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
+    led_centroid_px: Annotated[float, Field(ge=0.0, le=10.0)] = 0.0
+    child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
+
+    @property
+    def projected_led_px(self) -> float:
+        """Standard deviation of each coordinate of an LED projected instead of rendered
+        (geometric and batch fidelities), px: the detector's and the camera's in quadrature."""
+        if self.led_centroid_px == 0.0:
+            return self.led_detection_px
+        return math.hypot(self.led_detection_px, self.led_centroid_px)
 
 
 # -- route and calibration plan --------------------------------------------------------------
@@ -722,6 +749,11 @@ class CampaignSettings(Frozen):
         strategy: the campaign's decisions (visits, legs, data stops) by name:
             ``paper`` (the paper's; the default for now). ``twin run --strategy`` overrides
             it.
+        child_creep_m: how far the campaign allows a standing child to move on each
+            horizontal axis while the parent drives, m (standard deviation): CPS adds it to
+            the children's positions before each of the parent's fixes, in its estimate,
+            its consistency test and its covariance. What the twin simulates is
+            ``noise.child_creep_m``; set this to what you know of your robots. Default 0.
     """
 
     reference_cameras: tuple[Name, ...] | None = Field(default=None, max_length=MAX_CAMERAS)
@@ -733,6 +765,7 @@ class CampaignSettings(Frozen):
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
     pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
     strategy: Name = "paper"
+    child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
 
 
 class Faults(Frozen):
@@ -857,6 +890,8 @@ class Scenario(Frozen):
             stopping=StoppingConfig(sigma_xy=0.0, sigma_yaw=0.0),
             led_detection_px=0.0,
             marker_geometry_m=0.0,
+            led_centroid_px=0.0,
+            child_creep_m=0.0,
         )
         cameras = tuple(
             c.model_copy(update={"sensor": c.sensor.model_copy(update={"noise": False})})

@@ -155,6 +155,13 @@ class World:
             mujoco.mj_forward(self.model, self.data)
         self.driving.put_down(robot)
 
+    def shift(self, robot: str, dxy: ArrayLike) -> None:
+        """Move a robot by (2,) ``dxy`` m on the floor at once, without telling its odometry
+        (a creep it does not notice); its heading and its rest are kept."""
+        h = self.robots[robot]
+        self.data.qpos[h.qpos : h.qpos + 2] += np.asarray(dxy, dtype=float).reshape(2)
+        mujoco.mj_forward(self.model, self.data)
+
     @property
     def time(self) -> float:
         """Simulation time, s."""

@@ -41,7 +41,14 @@ def test_negative_seeds_and_indices_are_refused(master, trial):
 @pytest.fixture(scope="module")
 def hall():
     sc = load_scenario(SCENARIOS / "paper_hall.toml")
-    return sc.model_copy(update={"noise": sc.noise.model_copy(update={"marker_geometry_m": 1e-3})})
+    ts = sc.noise.total_station.model_copy(update={"pointing_sigma": 1e-3})
+    update = {
+        "marker_geometry_m": 1e-3,
+        "led_centroid_px": 0.5,
+        "child_creep_m": 1e-3,
+        "total_station": ts,
+    }
+    return sc.model_copy(update={"noise": sc.noise.model_copy(update=update)})
 
 
 def _active(sc) -> set[str]:
@@ -50,9 +57,12 @@ def _active(sc) -> set[str]:
     on = {
         "distance": ts.distance_sigma_const > 0 or ts.distance_sigma_ppm > 0,
         "angle": ts.angle_sigma > 0,
+        "pointing": ts.pointing_sigma > 0,
         "inclination": n.inclinometer.sigma > 0,
         "led_detection": n.led_detection_px > 0 or any(c.sensor.noise for c in sc.cameras),
+        "led_centroid": n.led_centroid_px > 0,
         "stopping": n.stopping.sigma_xy > 0 or n.odometry.distance_noise > 0,
+        "creep": n.child_creep_m > 0,
         "marker": n.marker_geometry_m > 0,
     }
     return {k for k, v in on.items() if v}

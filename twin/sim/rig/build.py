@@ -13,6 +13,7 @@ from twin.scenario.schema import Noise
 from twin.sim.capture import CameraSimulator
 from twin.sim.rig.base import GeometricBase, RenderBase
 from twin.sim.rig.clock import SimClock
+from twin.sim.rig.creep import CreepingChildren
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
 from twin.sim.rig.shot_noise import ShotNoise
@@ -30,6 +31,10 @@ SETTLE_TIME = 0.5
 
 RIG_STREAM = 3
 """Spawn key of the rig's random streams (the world uses 1, the camera sensors 2)."""
+
+CREEP_STREAM = 5
+"""Spawn key of the children's creep (:mod:`twin.sim.rig.creep`), apart from the rig's
+streams so that switching it on changes no other draw."""
 
 
 @dataclass
@@ -149,6 +154,8 @@ def build_sim_rig(
                 led_line,
                 hidden_led_rate=faults.hidden_led_rate,
                 fault_rng=fault_led_rng,
+                centroid_px=sc.noise.led_centroid_px,
+                centroid_rng=led_rng[cam],
             )
     else:
         for cam in cams:
@@ -156,11 +163,20 @@ def build_sim_rig(
                 world,
                 cam,
                 clock,
-                sc.noise.led_detection_px,
+                sc.noise.projected_led_px,
                 led_rng[cam],
                 hidden_led_rate=faults.hidden_led_rate,
                 fault_rng=fault_led_rng,
             )
+    if sc.noise.child_creep_m > 0:
+        creep_rng = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(CREEP_STREAM,)))
+        bases[parent] = CreepingChildren(
+            bases[parent],
+            world,
+            [c.name for c in sc.robots.children],
+            sc.noise.child_creep_m,
+            creep_rng,
+        )
     if truth is not None:
         witness = TruthWitness(truth, world, frame, clock, parent)
         witness.cameras()

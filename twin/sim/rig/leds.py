@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -99,7 +100,9 @@ def _draw_hidden(rate: float, rng: np.random.Generator) -> frozenset[int]:
 
 
 class RenderLedSensor(ImageLedSensor):
-    """:class:`ImageLedSensor` on a rendered camera, with injected hidden LEDs."""
+    """:class:`ImageLedSensor` on a rendered camera, with injected hidden LEDs and the real
+    camera's centroid error (``centroid_px`` per coordinate, from ``centroid_rng``) added to
+    what the detector found."""
 
     def __init__(
         self,
@@ -110,8 +113,12 @@ class RenderLedSensor(ImageLedSensor):
         led_line: Sequence[float],
         hidden_led_rate: float = 0.0,
         fault_rng: np.random.Generator | None = None,
+        centroid_px: float = 0.0,
+        centroid_rng: np.random.Generator | None = None,
     ) -> None:
         super().__init__(camera, leds, clock, frame_interval=FRAME_INTERVAL, led_line=led_line)
+        self.centroid_px = float(centroid_px)
+        self.centroid_rng = centroid_rng if centroid_rng is not None else np.random.default_rng(0)
         self.sim_leds = leds
         self.timings = timings
         self.hidden_led_rate = hidden_led_rate
@@ -122,9 +129,17 @@ class RenderLedSensor(ImageLedSensor):
         leds.hidden = _draw_hidden(self.hidden_led_rate, self.fault_rng)
         try:
             with timed(self.timings, "observe"):
-                return super().observe(child, sequence)
+                seen = super().observe(child, sequence)
         finally:
             leds.hidden = frozenset()
+        if self.centroid_px == 0.0:
+            return seen
+        error = self.centroid_px * self.centroid_rng.standard_normal(seen.pixels.shape)
+        return dataclasses.replace(
+            seen,
+            pixels=seen.pixels + error,
+            sigma_px=np.hypot(seen.sigma_px, self.centroid_px),
+        )
 
 
 class GeometricLedSensor(LedSensor):
