@@ -1,4 +1,5 @@
-"""Figures of a Monte-Carlo run: error histograms, error against distance, the budget.
+"""Figures of a Monte-Carlo run: error histograms, error against distance, the budget, and
+the twin against the paper's measurements.
 
 Drawn on Agg figures without pyplot, as :mod:`twin.report.figures`.
 """
@@ -12,7 +13,10 @@ from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+from matplotlib.ticker import NullFormatter
 
+from twin.montecarlo.paper_targets import TARGETS, trial_values
 from twin.montecarlo.sources import ALL
 from twin.montecarlo.summary import visits_of
 from twin.report.figures import PALETTE, no_data, save_figure
@@ -130,6 +134,52 @@ def budget_bars(budget: dict[str, Any] | None, path: str | Path) -> Path:
     return save_figure(fig, path)
 
 
+def paper_percentiles(
+    rows: Sequence[dict[str, Any]], summary: dict[str, Any], path: str | Path
+) -> Path:
+    """For each of the paper's numbers (Table III, repeatability), the twin's distribution
+    over trials divided by the paper's value (log scale), with the paper at 1 and its
+    percentile among the trials written beside it."""
+    entries = summary["paper"]
+    fig = Figure(figsize=(8.0, 0.32 * len(entries) + 1.4))
+    ax = fig.add_subplot()
+    data, labels = [], []
+    for e in entries:
+        target = next(t for t in TARGETS if t.name == e["name"])
+        values = trial_values(rows, target)
+        data.append(values / target.paper if len(values) else np.array([np.nan]))
+        labels.append(e["name"])
+    positions = np.arange(len(entries))[::-1]
+    for y, ratios in zip(positions, data, strict=True):
+        finite = ratios[np.isfinite(ratios)]
+        if len(finite) == 0:
+            continue
+        p10, q1, med, q3, p90 = np.percentile(finite, [10, 25, 50, 75, 90])
+        ax.hlines(y, p10, p90, color="0.4", lw=1.0)
+        ax.add_patch(
+            Rectangle((q1, y - 0.3), q3 - q1, 0.6, facecolor="tab:blue", alpha=0.25, ec="0.4")
+        )
+        ax.vlines(med, y - 0.3, y + 0.3, color="tab:blue", lw=1.6)
+    ax.axvline(1.0, color="tab:red", lw=1.2, label="the paper's value")
+    for y, e in zip(positions, entries, strict=True):
+        pct = e["paper_percentile"]
+        text = "—" if not math.isfinite(pct) else f"paper at {pct:.0f} %"
+        ax.text(1.02, y, text, transform=ax.get_yaxis_transform(), va="center", fontsize=7)
+    ax.set_yticks(positions, labels, fontsize=7)
+    ax.set_ylim(-0.8, len(entries) - 0.2)
+    ax.set_xscale("log")
+    ticks = [0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0]
+    ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("twin / paper (box: quartiles, whiskers: 10-90 %)")
+    ax.set_title(
+        "The twin's distribution over trials against the paper's measurements", fontsize=10
+    )
+    ax.legend(fontsize=7, loc="lower left")
+    fig.subplots_adjust(right=0.83)
+    return save_figure(fig, path)
+
+
 def write_figures(
     rows: Sequence[dict[str, Any]], summary: dict[str, Any], folder: str | Path
 ) -> dict[str, Path]:
@@ -139,4 +189,9 @@ def write_figures(
         "histograms": histograms(rows, summary, folder / "position_error_histograms.png"),
         "error_vs_distance": error_vs_distance(summary, folder / "error_vs_distance.png"),
         "budget": budget_bars(summary.get("budget"), folder / "budget.png"),
+        **(
+            {"paper": paper_percentiles(rows, summary, folder / "paper_percentiles.png")}
+            if summary.get("paper")
+            else {}
+        ),
     }

@@ -27,7 +27,7 @@ from twin.montecarlo.batch_trials import (
 )
 from twin.montecarlo.engines import make_engine
 from twin.montecarlo.seeds import trial_seed
-from twin.montecarlo.sources import configurations
+from twin.montecarlo.sources import configurations, unpredicted
 from twin.montecarlo.table import TrialTable
 from twin.montecarlo.trial import TrialSpec, run_trial
 from twin.outputs import claim_folder, write_text_atomic
@@ -72,6 +72,7 @@ def _settings(
         "strategy": strategy,
         "master_seed": master_seed,
         "configurations": list(configs),
+        "unpredicted_sources": unpredicted(scenario),
     }
 
 

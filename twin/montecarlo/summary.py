@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from twin.montecarlo.paper_targets import against_paper, applies
 from twin.montecarlo.sources import ALL, SOURCES
 
 PERCENTILES = (50.0, 90.0, 99.0)
@@ -189,4 +190,5 @@ def summarise(rows: Sequence[dict[str, Any]], settings: dict[str, Any]) -> dict[
         "visits": visit_summary(rows),
         "parent_final": parent_summary(rows),
         "budget": budget(rows),
+        "paper": against_paper(rows) if applies(rows) else None,
     }
