@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -108,6 +109,46 @@ class LocalEngine:
             self._pool = None
 
 
+RAY_CONNECT_TIMEOUT = 5.0
+"""Seconds to wait for a Ray cluster's address to accept a connection before giving up
+(Ray itself keeps trying for minutes)."""
+
+_RAY_DEFAULT_PORTS = {"ray://": 10001, "": 6379}
+
+
+def check_ray_address(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT) -> None:
+    """Refuse, within ``timeout_s``, a Ray address that nothing answers at.
+
+    ``address`` is ``host:port`` (a cluster's GCS, port 6379 by default), ``ray://host:port``
+    (Ray Client, port 10001 by default), or ``auto`` / ``local`` (not checked: Ray resolves
+    them itself).
+
+    Raises:
+        ValueError: an address that is not of these forms.
+        RuntimeError: nothing accepts a connection there, naming the address and the cause.
+    """
+    if address in ("auto", "local"):
+        return
+    scheme = "ray://" if address.startswith("ray://") else ""
+    rest = address[len(scheme) :]
+    host, sep, port_text = rest.rpartition(":")
+    if not sep:
+        host, port_text = rest, str(_RAY_DEFAULT_PORTS[scheme])
+    if not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ValueError(
+            f"Ray address {address!r}: expected host:port, ray://host:port, auto or local"
+        )
+    try:
+        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise RuntimeError(
+            f"no Ray cluster answers at {address} ({exc}; waited at most {timeout_s:g} s): "
+            "start one there with `ray start --head`, or give --ray-address auto on a node "
+            "of a running cluster"
+        ) from exc
+
+
 class RayEngine:
     """Ray tasks: on a new local Ray instance of ``workers`` CPUs, or on the cluster at
     ``address`` (``auto`` for the one this machine belongs to).
@@ -123,6 +164,8 @@ class RayEngine:
             raise RuntimeError(RAY_MISSING) from exc
         self.ray = ray
         self._started = False
+        if address is not None:
+            check_ray_address(address)
         if not ray.is_initialized():
             kwargs: dict[str, Any] = {
                 "include_dashboard": False,

@@ -262,3 +262,32 @@ def test_a_batch_chunk_that_raises_is_named_with_its_trials(tmp_path, monkeypatc
     assert "trials 0-2 of 'all' at the batch fidelity failed: LinAlgError: Singular" in said
     assert "--resume continues" in said
     assert (out / TABLE).read_text().count("\n") == 1  # the header, no trial
+
+
+def test_a_ray_address_nothing_answers_at_is_refused_within_seconds():
+    import socket
+
+    from twin.montecarlo.engines import check_ray_address
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # free once closed: nothing listens there
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError, match=f"no Ray cluster answers at 127.0.0.1:{port}"):
+        check_ray_address(f"127.0.0.1:{port}", timeout_s=2.0)
+    assert time.monotonic() - t0 < 5.0
+    for bad in ("127.0.0.1:notaport", "ray://:10001", "127.0.0.1:70000"):
+        with pytest.raises(ValueError, match="expected host:port"):
+            check_ray_address(bad)
+    check_ray_address("auto")  # left to Ray
+
+
+def test_a_ray_address_that_answers_passes():
+    import socket
+
+    from twin.montecarlo.engines import check_ray_address
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        check_ray_address(f"ray://127.0.0.1:{server.getsockname()[1]}", timeout_s=2.0)
