@@ -138,7 +138,9 @@ def segment_blocked(
         q += [c * dx + s * dy, -s * dx + c * dy, np.broadcast_to(p[:, 2], dx.shape)]
     t0 = np.zeros(qa[0].shape)
     t1 = np.ones(qa[0].shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    # A segment (nearly) parallel to a slab gives infinite (or overflowing) slab
+    # parameters: the comparisons below treat them as the limits they are.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for k in range(3):
             d = qb[k] - qa[k]
             inv = 1.0 / d
