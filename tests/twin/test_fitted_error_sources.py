@@ -130,12 +130,16 @@ class _Base:
     def drive_to(self, goal_xy, goal_yaw=None):
         return "drove"
 
+    def set_pose(self, x, y, yaw):
+        pass
 
-def test_the_children_creep_after_each_drive_of_the_parent():
+
+def test_the_children_creep_after_each_leg_of_the_parent():
     world = _World()
     base = CreepingChildren(_Base(), world, ["c1", "c2"], 2e-3, np.random.default_rng(1))
     for _ in range(3000):
         assert base.drive_to([1.0, 0.0]) == "drove"
+        base.set_pose(1.0, 0.0, 0.0)  # the fix that ends the leg
     robots = [r for r, _ in world.shifts]
     assert robots == ["c1", "c2"] * 3000
     d = np.array([s for _, s in world.shifts])
@@ -293,3 +297,37 @@ def test_the_render_fidelity_runs_with_the_new_sources(tmp_path):
     (cal,) = results["calibrations"]
     assert 0.4 < cal["errors"]["local"]["pixel_mean"] < 0.9
     assert not results["skipped_visits"]
+
+
+def test_a_failed_fix_leaves_the_creep_uncounted():
+    # A fix whose children do not fit (here: one child moved 5 cm) raises and leaves the
+    # sequence as it was, its covariance included: a retry adds the creep once, not again.
+    from twin.instruments.errors import InconsistentChildrenError
+    from twin.localization.observation import ChildObservation
+    from twin.localization.sequence import CpsSequence
+
+    cov = 1e-6 * np.eye(3)
+    seq = CpsSequence(["c1", "c2"], child_creep=2e-3)
+    spots = {"c1": np.array([7.5, 0.7, 1.0]), "c2": np.array([10.0, -0.7, 1.0])}
+    seq.children_moved([ChildObservation(c, p, cov) for c, p in spots.items()])
+    before = seq.state_covariance
+    moved = {"c1": spots["c1"] - [5.0, 0.0, 0.0], "c2": spots["c2"] - [5.0, -0.05, 0.0]}
+    for _ in range(3):
+        with pytest.raises(InconsistentChildrenError):
+            seq.parent_moved([ChildObservation(c, p, cov) for c, p in moved.items()])
+        np.testing.assert_array_equal(seq.state_covariance, before)
+    moved["c2"] = spots["c2"] - [5.0, 0.0, 0.0]
+    seq.parent_moved([ChildObservation(c, p, cov) for c, p in moved.items()])
+    _, p = seq.child_position("c1")
+    assert p[0, 0] == pytest.approx(before[4, 4] + 4e-6)
+
+
+def test_creep_comes_once_per_leg_of_the_parent():
+    world = _World()
+    base = CreepingChildren(_Base(), world, ["c1", "c2"], 2e-3, np.random.default_rng(1))
+    base.drive_to([1.0, 0.0])
+    base.drive_to([2.0, 0.0])  # round a corner: the same leg
+    assert len(world.shifts) == 2
+    base.set_pose(2.0, 0.0, 0.0)  # a fix
+    base.drive_to([3.0, 0.0])
+    assert len(world.shifts) == 4

@@ -72,6 +72,9 @@ from twin.sim.capture import in_image
 BATCH_STREAM = 11
 """Spawn key of a trial's stream of the batch fidelity's noise."""
 
+CREEP_BATCH_STREAM = 12
+"""Spawn key of a trial's stream of the children's creep (drawn only when there is some)."""
+
 FALSE_ALARM_RATE = 1e-4
 """The consistency tests' false-alarm rate, as the campaign's with a noisy instrument."""
 
@@ -87,11 +90,13 @@ class Draws:
         seeds: (T,) the trials' root seeds.
         count: draws each trial is expected to need (reserved at once; more are drawn as
             they are needed).
+        stream: the spawn key of the trials' generators (a source with its own stream
+            changes no other source's draws when it is switched on).
     """
 
-    def __init__(self, seeds: Sequence[int], count: int) -> None:
+    def __init__(self, seeds: Sequence[int], count: int, stream: int = BATCH_STREAM) -> None:
         self._generators = [
-            np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(BATCH_STREAM,)))
+            np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(stream,)))
             for seed in seeds
         ]
         self.values = np.zeros((len(seeds), 0))
@@ -277,7 +282,10 @@ class BatchRun:
         self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
         n_leds = len(self.marker.leds_body)
+        self.seeds = list(seeds)
         self.draws = Draws(seeds, draws_needed(plan, n_leds))
+        self._creep_draws: Draws | None = None
+        self._leg_started = False
         t = self.trials
         self.robots = {
             name: _Robot(
@@ -341,10 +349,14 @@ class BatchRun:
         true[:, 2] += stop.sigma_yaw * self.draws.take(1)[:, 0]
         robot.true, robot.believed, robot.nominal = true, believed, step.truth
         creep = self.noise.child_creep_m
-        if step.robot == self.plan.parent and creep > 0:
-            # The standing children creep while the parent drives (twin.sim.rig.creep).
+        if step.robot == self.plan.parent and creep > 0 and not self._leg_started:
+            # The standing children creep once per leg of the parent (twin.sim.rig.creep),
+            # from their own stream: switching creep on changes no other draw.
+            self._leg_started = True
+            if self._creep_draws is None:
+                self._creep_draws = Draws(self.seeds, 0, stream=CREEP_BATCH_STREAM)
             for child in self.plan.children:
-                self.robots[child].true[:, :2] += creep * self.draws.take(2)
+                self.robots[child].true[:, :2] += creep * self._creep_draws.take(2)
 
     # -- shots -----------------------------------------------------------------------------
     def _instrument(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -407,6 +419,7 @@ class BatchRun:
         self.placed[child] = (obs, parent)
 
     def _fix(self, children: tuple[str, ...]) -> None:
+        self._leg_started = False  # the parent's next drive starts a leg
         observations = [(child, self._observe(child)) for child in children]
         self.failures += self.cps.parent_moved(observations)
         parent = self.cps.parent

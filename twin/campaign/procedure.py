@@ -279,5 +279,6 @@ def _solver(rig: Rig) -> str:
     """WLS weighs the children by their covariance; an instrument with a noise-free axis
     gives singular covariances, and then the closed form (eq. 2), which needs none."""
     spec, tilt = rig.total_station.spec, rig.total_station.inclinometer
-    sigmas = (spec.distance_sigma(1.0), spec.angle_sigma, 1.0 if tilt is None else tilt.sigma)
+    angles = max(spec.angle_sigma, spec.pointing_sigma)  # either makes the angles noisy
+    sigmas = (spec.distance_sigma(1.0), angles, 1.0 if tilt is None else tilt.sigma)
     return "wls" if min(sigmas) > 0 and len(rig.children) > 1 else "closed_form"

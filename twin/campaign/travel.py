@@ -256,7 +256,10 @@ class Travel:
             parent.set_pose(float(pose.translation[0]), float(pose.translation[1]), pose.yaw)
             self.journal.parent_fix(pose, tuple(o.child for o in obs))
             return
-        raise CampaignAborted("the parent could not fix its pose from the children")
+        raise CampaignAborted(
+            "the parent could not fix its pose from the children (if they may move while "
+            "the parent drives, say how far in campaign.child_creep_m)"
+        )
 
     def _step_aside(self, step: float) -> bool:
         """A child's prism stays hidden from where the parent stands: CPS solves the

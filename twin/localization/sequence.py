@@ -265,11 +265,13 @@ class CpsSequence:
                 f"children {unknown} were never placed in the world; measure them with "
                 "children_moved before the parent moves"
             )
-        add_creep(self._covariance, self._known, self._creep)
+        # The children may have crept while the parent drove; kept only if the step succeeds.
+        prior = self._covariance.copy()
+        add_creep(prior, self._known, self._creep)
         cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
         world = self._state[cols].reshape(-1, 3)
         level = np.array([o.point_level for o in obs])
-        cov_w = self._covariance[np.ix_(cols, cols)]
+        cov_w = prior[np.ix_(cols, cols)]
         cov_m = np.array([o.covariance for o in obs])
         stamp = self._stamp(obs, timestamp)
         kwargs = {
@@ -293,6 +295,7 @@ class CpsSequence:
             noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
         x_new = self._state.copy()
         x_new[:4] = solution.pose.vector
+        self._covariance = prior
         self._commit(x_new, a, b, noise)
         return self._record(StepKind.PARENT_MOVED, obs, ("parent",), stamp, solution)
 

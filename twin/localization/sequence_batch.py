@@ -223,11 +223,13 @@ class CpsBatch:
                 "children_moved before the parent moves"
             )
         n_trials, n = self._state.shape
-        add_creep(self._covariance, self._known, self._creep)
+        # The children may have crept while the parent drove; kept only if the step succeeds.
+        prior = self._covariance.copy()
+        add_creep(prior, self._known, self._creep)
         cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
         world = self._state[:, cols].reshape(n_trials, -1, 3)
         level = np.stack([o.point_level for o in obs], axis=1)
-        cov_w = self._covariance[:, cols][:, :, cols]
+        cov_w = prior[:, cols][:, :, cols]
         cov_m = np.stack([o.covariance for o in obs], axis=1)
         stamp = self._stamp(obs, timestamp)
         kwargs = {
@@ -247,6 +249,7 @@ class CpsBatch:
         b[:, :4, :] = solution.measurement_jacobian
         x_new = self._state.copy()
         x_new[:, :4] = solution.pose.vector
+        self._covariance = prior
         self._commit(x_new, a, b, block_diagonal(cov_m))
         lost = solution.poor_geometry
         self._state[lost] = np.nan

@@ -5,18 +5,22 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from twin.scenario.loader import scenario_from_dict
 from twin.scenario.schema import Scenario
 
 
-def with_values(scenario: Scenario, values: Mapping[str, float]) -> Scenario:
+def with_values(scenario: Scenario, values: Mapping[str, object]) -> Scenario:
     """``scenario`` with each key, dotted from the top (``noise.led_centroid_px``,
-    ``campaign.child_creep_m``), set to its value (SI units), validated.
+    ``campaign.child_creep_m``), set to its value (SI units), checked as its file would be
+    (each value's range, and the cross-checks between sections).
 
     Raises:
         KeyError: a key the scenario does not have.
-        ValueError: a value its key does not accept.
+        twin.scenario.ScenarioError: a value its key does not accept, or a scenario the
+            cross-checks refuse (a ValueError, naming the key).
     """
-    raw = scenario.model_dump()
+    raw = scenario.model_dump(mode="json")
+    source = raw.pop("source")
     for key, value in values.items():
         node = raw
         *path, last = key.split(".")
@@ -26,5 +30,5 @@ def with_values(scenario: Scenario, values: Mapping[str, float]) -> Scenario:
             node = node[part]
         if not isinstance(node, dict) or last not in node:
             raise KeyError(f"no key {key} in the scenario")
-        node[last] = float(value)
-    return type(scenario).model_validate(raw)
+        node[last] = value
+    return scenario_from_dict(raw, source or "<dict>")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from twin.scenario import load_scenario
+from twin.scenario import ScenarioError, load_scenario
 from twin.scenario.overrides import with_values
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
@@ -33,3 +33,8 @@ def test_values_are_set_by_dotted_key_and_validated(hall_scenario):
         with_values(hall_scenario, {"campaign.nothing.deeper": 1.0})
     with pytest.raises(ValueError, match="led_centroid_px"):
         with_values(hall_scenario, {"noise.led_centroid_px": -1.0})
+    # Integer keys keep their type; the cross-checks between sections run as for a file.
+    assert with_values(hall_scenario, {"campaign.min_points": 30}).campaign.min_points == 30
+    with pytest.raises(ScenarioError, match=r"calibration\.visits\[0\]\.station"):
+        with_values(hall_scenario, {"noise.total_station.range_max": 5.0})
+    assert with_values(hall_scenario, {}) == hall_scenario

@@ -32,7 +32,7 @@ SETTLE_TIME = 0.5
 RIG_STREAM = 3
 """Spawn key of the rig's random streams (the world uses 1, the camera sensors 2)."""
 
-CREEP_STREAM = 5
+CREEP_STREAM = 6
 """Spawn key of the children's creep (:mod:`twin.sim.rig.creep`), apart from the rig's
 streams so that switching it on changes no other draw."""
 

@@ -5,8 +5,9 @@ for the half minute the parent takes to drive to its next station: its tyres set
 mast leans a milliradian or two. The parent measures the child before and after its drive
 (the two halves of a CPS step), so that movement goes straight into the parent's new pose;
 the LED data, where the parent stands still, does not see it. Modelled as a horizontal shift
-of each standing child, drawn anew at each of the parent's drives
-(``noise.child_creep_m``).
+of each standing child, drawn once per leg of the parent (at its first drive after it fixed
+its pose: a leg around a corner is several drives, and one creep), as CPS allows for it
+(``noise.child_creep_m``; the campaign's ``campaign.child_creep_m``).
 """
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ from twin.sim.world import World
 
 
 class CreepingChildren(MobileBaseWrapper):
-    """The parent's base: after each of its drives, every child is shifted in the world by
-    a horizontal offset with standard deviation ``sigma_m`` on each axis, m.
+    """The parent's base: after its first drive since its pose was last set (a CPS fix),
+    every child is shifted in the world by a horizontal offset with standard deviation
+    ``sigma_m`` on each axis, m.
 
     Args:
         inner: the parent's base. world: the world the children stand in.
@@ -44,9 +46,16 @@ class CreepingChildren(MobileBaseWrapper):
         self.children = tuple(children)
         self.sigma_m = float(sigma_m)
         self.rng = rng
+        self._leg_started = False
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:
         result = self.inner.drive_to(goal_xy, goal_yaw)
-        for child in self.children:
-            self.world.shift(child, self.sigma_m * self.rng.standard_normal(2))
+        if not self._leg_started:
+            self._leg_started = True
+            for child in self.children:
+                self.world.shift(child, self.sigma_m * self.rng.standard_normal(2))
         return result
+
+    def set_pose(self, x: float, y: float, yaw: float) -> None:
+        self.inner.set_pose(x, y, yaw)
+        self._leg_started = False  # a fix: the next drive starts a leg
