@@ -123,8 +123,10 @@ def test_a_killed_run_keeps_what_it_measured(tmp_path):
     log = out / "log.mcap"
     deadline = time.time() + 120
     try:
+        # The log's first 80 kB hold some 35 complete shots (40 kB only 15: killed right
+        # at that size, a run kept too few for the test below); the run writes about 1 MB.
         while time.time() < deadline and proc.poll() is None:
-            if log.exists() and log.stat().st_size > 40_000:
+            if log.exists() and log.stat().st_size > 80_000:
                 break
             time.sleep(0.05)
         assert proc.poll() is None, "the run finished before it could be killed"
