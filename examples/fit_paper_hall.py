@@ -30,7 +30,13 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=1, help="master seed of the fit's trials")
     parser.add_argument("--check-seed", type=int, default=2, help="master seed of the check")
-    parser.add_argument("--start", type=float, nargs=3, default=(0.53, 1.6, 1.55))
+    parser.add_argument(
+        "--start",
+        type=float,
+        nargs=len(PAPER_HALL_SOURCES),
+        default=(0.55, 0.65, 0.9, 1.9),
+        help="starting values, in the order and units of the sources",
+    )
     args = parser.parse_args()
     scenario = load_scenario(args.scenario)
     t0 = time.perf_counter()
@@ -47,7 +53,7 @@ def main() -> None:
         for p, v, s, ok in zip(fit.parameters, fit.values, fit.std, fit.plausible(), strict=True):
             lo, hi = p.plausible
             print(
-                f"| noise.{p.key} | {v:.3f} {p.unit} | {s:.3f} {p.unit} | {lo:g}-{hi:g} "
+                f"| {p.key} | {v:.3f} {p.unit} | {s:.3f} {p.unit} | {lo:g}-{hi:g} "
                 f"{p.unit} | {'yes' if ok else 'no'} |"
             )
         print("\ncorrelation of the fitted values:")

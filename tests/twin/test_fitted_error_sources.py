@@ -34,7 +34,8 @@ def test_every_new_source_is_zero_by_default():
     assert sc.noise.total_station.pointing_sigma == 0.0
     assert sc.noise.led_centroid_px == 0.0
     assert sc.noise.child_creep_m == 0.0
-    assert sc.noise.projected_led_px == sc.noise.led_detection_px
+    assert all(c.led_centroid_px is None for c in sc.cameras)
+    assert sc.projected_led_px(sc.cameras[0].name) == sc.noise.led_detection_px
 
 
 @pytest.mark.parametrize(
@@ -331,3 +332,51 @@ def test_creep_comes_once_per_leg_of_the_parent():
     base.set_pose(2.0, 0.0, 0.0)  # a fix
     base.drive_to([3.0, 0.0])
     assert len(world.shifts) == 4
+
+
+# -- a camera's own centroid error ---------------------------------------------------------------
+def test_a_camera_may_have_its_own_centroid_error():
+    from twin.montecarlo.sources import isolate
+
+    hall = with_values(
+        load_scenario(ROOT / "scenarios" / "paper_hall.toml"),
+        {"noise.led_centroid_px": 0.4, "cameras.cam2.led_centroid_px": 0.7},
+    )
+    assert hall.led_centroid_px("cam1") == 0.4  # the noise section's
+    assert hall.led_centroid_px("cam2") == 0.7  # its own
+    assert hall.projected_led_px("cam2") == pytest.approx(np.hypot(0.05, 0.7))
+    quiet = hall.without_noise()
+    assert [quiet.led_centroid_px(c.name) for c in quiet.cameras] == [0.0, 0.0, 0.0]
+    # In an error budget the camera's own error belongs to the centroid source alone.
+    centroid, detection = isolate(hall, "led_centroid"), isolate(hall, "led_detection")
+    assert centroid.led_centroid_px("cam2") == 0.7
+    assert centroid.noise.led_detection_px == 0.0
+    assert detection.led_centroid_px("cam2") == 0.0
+    assert detection.projected_led_px("cam2") == 0.05
+    with pytest.raises(ScenarioError, match="led_centroid_px"):
+        with_values(hall, {"cameras.cam2.led_centroid_px": -0.1})
+
+
+def test_each_fidelity_gives_each_camera_its_own_centroid_error(smoke_plan, tmp_path):
+    from twin.sim.rig import build_sim_rig
+    from twin.sim.world import build_world
+
+    smoke = with_values(load_scenario(SMOKE), {"cameras.0.led_centroid_px": 0.6})
+    cam = smoke.cameras[0].name
+    expected = np.hypot(smoke.noise.led_detection_px, 0.6)
+    # Geometric: the camera's sensor.
+    rig = build_sim_rig(build_world(smoke), "geometric")
+    try:
+        assert rig.rig.led_sensors[cam].sigma_px == pytest.approx(expected)
+    finally:
+        rig.close()
+    # Batch: the pixels the trials draw, and what the prediction takes the detector for.
+    run = BatchRun(dataclasses.replace(smoke_plan, scenario=smoke), [1, 2])
+    assert run.led_px[cam] == pytest.approx(expected)
+    assert run.advertised_led_px[cam] == pytest.approx(expected)
+    # Render: the camera's own error reaches its rendered detections.
+    rendered = build_sim_rig(build_world(smoke), "render")
+    try:
+        assert rendered.rig.led_sensors[cam].centroid_px == 0.6
+    finally:
+        rendered.close()

@@ -35,7 +35,7 @@ plan decision by decision (a CPS leg, a camera's data) and look at the state bet
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,6 +256,9 @@ class BatchRun:
         seeds: (T,) each trial's root seed.
         noise: the noise the trials simulate (an error budget's one source: see
             :func:`twin.montecarlo.sources.isolate`); default the plan's scenario's.
+        led_px: each camera's simulated LED pixel noise by name, px (its detector's and its
+            centroid error: :meth:`twin.scenario.Scenario.projected_led_px`); default the
+            plan's cameras with ``noise``.
         estimators: the estimators (default: :class:`twin.batch.vectorised.Vectorised`,
             the campaign's own as array code).
     """
@@ -266,6 +269,7 @@ class BatchRun:
         seeds: Sequence[int],
         noise: Noise | None = None,
         estimators: Estimators | None = None,
+        led_px: Mapping[str, float] | None = None,
     ) -> None:
         if estimators is None:
             estimators = Vectorised()
@@ -278,7 +282,11 @@ class BatchRun:
         # The instrument advertises the scenario's full noise: the estimators weigh by it.
         self.advertised: TotalStationSpec = sc.noise.total_station.spec()
         self.advertised_tilt: InclinometerSpec = sc.noise.inclinometer.spec()
-        self.advertised_pixel_px = sc.noise.projected_led_px
+        self.advertised_led_px = {c.name: sc.projected_led_px(c.name) for c in sc.cameras}
+        if led_px is None:
+            simulated = sc.model_copy(update={"noise": self.noise})
+            led_px = {c.name: simulated.projected_led_px(c.name) for c in sc.cameras}
+        self.led_px = dict(led_px)
         self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
         n_leds = len(self.marker.leds_body)
@@ -458,7 +466,7 @@ class BatchRun:
         seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
         lost = ~seen.reshape(self.trials, -1).all(axis=1)
         self.failures += lost
-        pixels = pixels + self.noise.projected_led_px * self.draws.take(true.shape[1], 2)
+        pixels = pixels + self.led_px[step.camera] * self.draws.take(true.shape[1], 2)
         world = np.where(lost[:, None, None], np.nan, world)
         pixels = np.where(lost[:, None, None], np.nan, pixels)
         data = self._dataset(step)
@@ -486,7 +494,7 @@ class BatchRun:
         own = own_position_variance(
             cal.position_std,
             cal.sigma_px,
-            self.advertised_pixel_px,
+            self.advertised_led_px[step.camera],
             np.trace(est.points_effect(cal, points, data.stops()), axis1=1, axis2=2),
         )
         self.visits[(step.camera, step.visit)] = VisitOutcome(

@@ -96,8 +96,11 @@ def run_batch_chunk(chunk: BatchChunk) -> list[TrialResult]:
     specs = chunk.specs
     config = specs[0].config
     try:
-        noise = isolate(chunk.plan.scenario, config).noise
-        outcome = BatchRun(chunk.plan, [s.seed for s in specs], noise=noise).run()
+        simulated = isolate(chunk.plan.scenario, config)
+        led_px = {c.name: simulated.projected_led_px(c.name) for c in simulated.cameras}
+        outcome = BatchRun(
+            chunk.plan, [s.seed for s in specs], noise=simulated.noise, led_px=led_px
+        ).run()
     except Exception as exc:
         first, last = specs[0].trial, specs[-1].trial
         raise TrialFailed(

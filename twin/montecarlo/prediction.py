@@ -20,7 +20,7 @@ The prediction is first order and treats the parts as independent.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -112,14 +112,15 @@ def points_variance(model: dict[str, Any], stops: Sequence[dict[str, Any]], n: i
 
 
 def predictions_from_log(
-    messages: Iterable[Any], pixel_noise_px: float | None = None
+    messages: Iterable[Any], pixel_noise_px: float | Mapping[str, float] | None = None
 ) -> tuple[list[CalibrationPrediction], ParentFinal | None]:
     """The predicted errors of every calibration of a run, and its parent's last fix.
 
     Args:
         messages: the log's messages in file order (``LogContents.messages``).
         pixel_noise_px: the LED detector's pixel noise, px
-            (:func:`calib.covariance.own_position_variance`).
+            (:func:`calib.covariance.own_position_variance`), one for every camera or
+            each camera's by name.
     """
     fix: dict[str, Any] | None = None
     truth: list[dict[str, Any]] = []
@@ -139,7 +140,12 @@ def predictions_from_log(
             std = [float(rec["std"].get(k, 0.0)) for k in ("x", "y", "z")]
             data = stops.get((rec["camera"], int(rec["visit"])), [])
             shared = points_variance(rec["camera_model"], data, int(rec["points"]))
-            own = float(own_position_variance(std, rec["sigma_px"], pixel_noise_px, shared))
+            pixel = (
+                pixel_noise_px.get(rec["camera"])
+                if isinstance(pixel_noise_px, Mapping)
+                else pixel_noise_px
+            )
+            own = float(own_position_variance(std, rec["sigma_px"], pixel, shared))
             out.append(
                 CalibrationPrediction(
                     rec["camera"], int(rec["visit"]), float(np.sqrt(np.trace(cov))), own**0.5

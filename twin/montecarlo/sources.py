@@ -20,7 +20,8 @@ SOURCES: dict[str, str] = {
     "inclination": "inclinometer noise",
     "led_detection": "LED detection in the image (geometric: noise.led_detection_px; "
     "render: the camera's sensor noise)",
-    "led_centroid": "the real camera's LED centroid error (noise.led_centroid_px)",
+    "led_centroid": "the real camera's LED centroid error (noise.led_centroid_px and each "
+    "camera's led_centroid_px)",
     "stopping": "robot stopping error and wheel odometry",
     "creep": "standing children moving while the parent drives (noise.child_creep_m)",
     "marker": "error of the marker assembly's geometry (noise.marker_geometry_m)",
@@ -66,12 +67,22 @@ def isolate(scenario: Scenario, source: str) -> Scenario:
         noise = off.model_copy(update={"inclinometer": full.inclinometer})
     elif source == "led_detection":
         noise = off.model_copy(update={"led_detection_px": full.led_detection_px})
-        cameras = scenario.cameras
+        # The cameras' sensors, without their own centroid errors (led_centroid's).
+        cameras = tuple(
+            c.model_copy(update={"led_centroid_px": q.led_centroid_px})
+            for c, q in zip(scenario.cameras, quiet.cameras, strict=True)
+        )
     elif source == "stopping":
         noise = off.model_copy(update={"stopping": full.stopping, "odometry": full.odometry})
     elif source in _NOISE_KEY:
         key = _NOISE_KEY[source]
         noise = off.model_copy(update={key: getattr(full, key)})
+        if source == "led_centroid":
+            # Each camera's own centroid error belongs to this source too.
+            cameras = tuple(
+                q.model_copy(update={"led_centroid_px": c.led_centroid_px})
+                for c, q in zip(scenario.cameras, quiet.cameras, strict=True)
+            )
     return quiet.model_copy(update={"noise": noise, "cameras": cameras})
 
 

@@ -113,7 +113,9 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 f"--strategy {spec.strategy}"
             ) from exc
         messages = read_log(f"{tmp}/log.mcap").messages
-        pixel_noise = spec.scenario.noise.projected_led_px
+        pixel_noise = {
+            c.name: spec.scenario.projected_led_px(c.name) for c in spec.scenario.cameras
+        }
         predictions, final = predictions_from_log(messages, pixel_noise)
     rows = trial_rows(spec, results, predictions, final)
     return TrialResult(spec, tuple(rows), time.perf_counter() - t0)

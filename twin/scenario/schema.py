@@ -254,6 +254,10 @@ class CameraConfig(Frozen):
             a normal lens; a wide lens's rational terms reach a few hundred).
         sensor: the image sensor; it renders the image whole at ``supersample`` times its
             size, at most ``MAX_RENDER_PX`` wide and high.
+        led_centroid_px: this camera's own LED centroid error (see
+            ``noise.led_centroid_px``), px per coordinate; None (default): the noise
+            section's. Cameras of one network differ (their optics, their electronics, the
+            light they look into).
     """
 
     name: Name
@@ -267,6 +271,7 @@ class CameraConfig(Frozen):
     image_size: tuple[ImageSide, ImageSide]
     opencv_distortion: tuple[Annotated[float, Field(ge=-1000.0, le=1000.0)], ...] | None = None
     sensor: SensorConfig = SensorConfig()
+    led_centroid_px: Annotated[float, Field(ge=0.0, le=10.0)] | None = None
 
     @field_validator("sensor")
     @classmethod
@@ -623,14 +628,6 @@ class Noise(Frozen):
     led_centroid_px: Annotated[float, Field(ge=0.0, le=10.0)] = 0.0
     child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
 
-    @property
-    def projected_led_px(self) -> float:
-        """Standard deviation of each coordinate of an LED projected instead of rendered
-        (geometric and batch fidelities), px: the detector's and the camera's in quadrature."""
-        if self.led_centroid_px == 0.0:
-            return self.led_detection_px
-        return math.hypot(self.led_detection_px, self.led_centroid_px)
-
 
 # -- route and calibration plan --------------------------------------------------------------
 def polyline_length(points: tuple[Point2, ...]) -> float:
@@ -894,10 +891,30 @@ class Scenario(Frozen):
             child_creep_m=0.0,
         )
         cameras = tuple(
-            c.model_copy(update={"sensor": c.sensor.model_copy(update={"noise": False})})
+            c.model_copy(
+                update={
+                    "sensor": c.sensor.model_copy(update={"noise": False}),
+                    "led_centroid_px": None if c.led_centroid_px is None else 0.0,
+                }
+            )
             for c in self.cameras
         )
         return self.model_copy(update={"noise": noise, "cameras": cameras})
+
+    def led_centroid_px(self, camera: str) -> float:
+        """The LED centroid error of camera ``camera``, px: its own, else the noise
+        section's."""
+        own = self.camera(camera).led_centroid_px
+        return self.noise.led_centroid_px if own is None else own
+
+    def projected_led_px(self, camera: str) -> float:
+        """Standard deviation of each coordinate of an LED that camera ``camera`` sees,
+        projected instead of rendered (geometric and batch fidelities), px: the detector's
+        and the camera's centroid error in quadrature."""
+        centroid = self.led_centroid_px(camera)
+        if centroid == 0.0:
+            return self.noise.led_detection_px
+        return math.hypot(self.noise.led_detection_px, centroid)
 
     def camera(self, name: str) -> CameraConfig:
         """The camera called ``name``; KeyError naming the known cameras otherwise."""

@@ -146,8 +146,8 @@ def test_the_fit_recovers_known_sources_from_their_own_medians():
         if medians[t.name] > 0
     )
     params = (
-        FitParameter("a", "px", 1.0, 3.0, (0.1, 1.0)),
-        FitParameter("b", "mm", 1e3, 10.0, (0.2, 3.0)),
+        FitParameter("noise.a", "px", 1.0, 3.0, (0.1, 1.0)),
+        FitParameter("noise.b", "mm", 1e3, 10.0, (0.2, 3.0)),
     )
     fit = fit_error_model(evaluate, params, [0.3, 3.0], targets)
     np.testing.assert_allclose(fit.values, truth, rtol=1e-3)
@@ -161,7 +161,7 @@ def test_the_fit_recovers_known_sources_from_their_own_medians():
 
 
 def test_a_start_outside_the_bounds_is_refused():
-    params = (FitParameter("a", "px", 1.0, 3.0, (0.1, 1.0)),)
+    params = (FitParameter("noise.a", "px", 1.0, 3.0, (0.1, 1.0)),)
     with pytest.raises(ValueError, match="start"):
         fit_error_model(lambda v: [], params, [5.0])
     with pytest.raises(ValueError, match="none of the targets"):

@@ -154,7 +154,7 @@ def build_sim_rig(
                 led_line,
                 hidden_led_rate=faults.hidden_led_rate,
                 fault_rng=fault_led_rng,
-                centroid_px=sc.noise.led_centroid_px,
+                centroid_px=sc.led_centroid_px(cam),
                 centroid_rng=led_rng[cam],
             )
     else:
@@ -163,7 +163,7 @@ def build_sim_rig(
                 world,
                 cam,
                 clock,
-                sc.noise.projected_led_px,
+                sc.projected_led_px(cam),
                 led_rng[cam],
                 hidden_led_rate=faults.hidden_led_rate,
                 fault_rng=fault_led_rng,
