@@ -82,7 +82,15 @@ def _check_resume(path: Path, settings: dict[str, Any]) -> None:
     old = json.loads(path.read_text())
     # Runs made before strategies had names made the paper's decisions.
     old.setdefault("strategy", "paper")
-    for key in ("scenario_digest", "fidelity", "strategy", "master_seed", "configurations"):
+    if old.get("scenario_digest") != settings["scenario_digest"]:
+        raise ValueError(
+            f"{path.parent}: cannot resume: the run there was made with another scenario "
+            f"(scenario_digest {old.get('scenario_digest')!r}, this one "
+            f"{settings['scenario_digest']!r}): its file changed, or this version of the "
+            "software gives scenarios other keys or defaults. Start a new run there with "
+            "--overwrite, or in another --out"
+        )
+    for key in ("fidelity", "strategy", "master_seed", "configurations"):
         if old.get(key) != settings[key]:
             raise ValueError(
                 f"{path.parent}: cannot resume: the run there has {key} = {old.get(key)!r}, "

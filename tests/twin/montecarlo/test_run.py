@@ -166,6 +166,9 @@ def test_resuming_with_other_settings_is_refused(smoke, reference, tmp_path):
     with pytest.raises(OutputError, match="holds no `twin montecarlo` run to resume"):
         run_montecarlo(smoke, tmp_path / "empty", TRIALS, resume=True)
     assert not (tmp_path / "empty").exists()
+    other = smoke.model_copy(update={"seed": smoke.seed + 1})
+    with pytest.raises(ValueError, match=r"made with another scenario .* --overwrite"):
+        run_montecarlo(other, tmp_path, TRIALS, master_seed=11, resume=True)
 
 
 @pytest.mark.parametrize(
