@@ -29,6 +29,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 
 from twin.closing import Closing
+from twin.interruption import deferred_interrupts
 from twin.record.codec import TYPE_KEY, decode, encode
 
 __all__ = ["LogContents", "LogMessage", "McapRecorder", "read_log"]
@@ -87,19 +88,21 @@ class McapRecorder(Closing):
             raise ValueError(f"topic must be a non-empty str, got {topic!r}")
         time_ns = _time_ns(timestamp, topic)
         payload = json.dumps(encode(record), allow_nan=False, separators=(",", ":"))
-        channel_id = self._channel(topic, record)
-        sequence = self._sequence.get(channel_id, 0)
-        self._sequence[channel_id] = sequence + 1
-        self._writer.add_message(
-            channel_id=channel_id,
-            log_time=time_ns,
-            data=payload.encode("utf-8"),
-            publish_time=time_ns,
-            sequence=sequence,
-        )
-        self._count += 1
-        if self._count % self.flush_every == 0:
-            self.flush()
+        # An interruption waits until the record is written whole.
+        with deferred_interrupts():
+            channel_id = self._channel(topic, record)
+            sequence = self._sequence.get(channel_id, 0)
+            self._sequence[channel_id] = sequence + 1
+            self._writer.add_message(
+                channel_id=channel_id,
+                log_time=time_ns,
+                data=payload.encode("utf-8"),
+                publish_time=time_ns,
+                sequence=sequence,
+            )
+            self._count += 1
+            if self._count % self.flush_every == 0:
+                self.flush()
 
     def flush(self) -> None:
         """Hand what was written to the operating system (no fsync)."""
@@ -111,10 +114,11 @@ class McapRecorder(Closing):
         if self._closed:
             return
         self._closed = True
-        try:
-            self._writer.finish()
-        finally:
-            self._file.close()
+        with deferred_interrupts():  # the summary and footer, whole
+            try:
+                self._writer.finish()
+            finally:
+                self._file.close()
 
     def _channel(self, topic: str, record: object) -> int:
         type_name = type(record).__name__ if _is_record(record) else None
