@@ -105,6 +105,19 @@ def check_step_children(index: Mapping[str, int], names: Sequence[str], minimum:
         raise ValueError(f"a child is observed twice in one step: {list(names)}")
 
 
+def check_children_and_solver(children: Sequence[str], solver: str) -> tuple[str, ...]:
+    """The children's names as a tuple, if there are two or more, all distinct and none
+    called ``parent``, and ``solver`` is one of :data:`SOLVERS`; ValueError otherwise."""
+    names = tuple(children)
+    if len(names) < 2:
+        raise ValueError(f"CPS needs at least two children, got {list(names)}")
+    if len(set(names)) != len(names) or "parent" in names:
+        raise ValueError(f"children names must be unique and not 'parent', got {list(names)}")
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+    return names
+
+
 def check_creep(creep: float) -> float:
     """``creep`` (m) if finite and non-negative; ValueError naming it otherwise."""
     if not (np.isfinite(creep) and creep >= 0):
@@ -151,13 +164,7 @@ class CpsSequence:
         false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
         child_creep: float = 0.0,
     ) -> None:
-        names = tuple(children)
-        if len(names) < 2:
-            raise ValueError(f"CPS needs at least two children, got {list(names)}")
-        if len(set(names)) != len(names) or "parent" in names:
-            raise ValueError(f"children names must be unique and not 'parent', got {list(names)}")
-        if solver not in SOLVERS:
-            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        names = check_children_and_solver(children, solver)
         pose = initial_pose if initial_pose is not None else ParentPose(0.0, np.zeros(3))
         self._children = names
         self._index = {name: i for i, name in enumerate(names)}

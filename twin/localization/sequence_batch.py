@@ -37,8 +37,8 @@ from twin.localization.observation_batch import ChildObservationBatch
 from twin.localization.pose import ParentPose
 from twin.localization.pose_batch import CpsSolutionBatch, ParentPoseBatch
 from twin.localization.sequence import (
-    SOLVERS,
     add_creep,
+    check_children_and_solver,
     check_creep,
     check_step_children,
     child_index,
@@ -78,13 +78,7 @@ class CpsBatch:
         false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
         child_creep: float = 0.0,
     ) -> None:
-        names = tuple(children)
-        if len(names) < 2:
-            raise ValueError(f"CPS needs at least two children, got {list(names)}")
-        if len(set(names)) != len(names) or "parent" in names:
-            raise ValueError(f"children names must be unique and not 'parent', got {list(names)}")
-        if solver not in SOLVERS:
-            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        names = check_children_and_solver(children, solver)
         if n_trials < 1:
             raise ValueError(f"n_trials must be at least 1, got {n_trials}")
         if initial_pose is None:

@@ -26,6 +26,7 @@ from twin.montecarlo.trial import (
     mm,
     offset_columns,
     parent_columns,
+    row_key,
 )
 from twin.report.reading import planned_visits
 
@@ -123,11 +124,7 @@ def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]
         made = v is not None and bool(v.calibrated[k])
         rows.append(
             {
-                "config": spec.config,
-                "trial": spec.trial,
-                "seed": spec.seed,
-                "camera": camera,
-                "visit": visit,
+                **row_key(spec, camera, visit),
                 "calibrated": int(made),
                 "distance_travelled_m": float(v.distance[k]) if made else math.nan,
                 "points": int(v.points[k]) if made else 0,

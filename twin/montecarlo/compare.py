@@ -50,6 +50,18 @@ class MedianRatio:
     trials_b: int
 
 
+def _check_tables(a: Sequence[np.ndarray], b: Sequence[np.ndarray]) -> None:
+    if len(a) < 2 or len(b) < 2:
+        raise ValueError(f"need at least two trials in each table, got {len(a)} and {len(b)}")
+
+
+def _interval(ratios: np.ndarray, level: float) -> tuple[float, float]:
+    """The central ``level`` interval of bootstrap ``ratios`` (percentile method)."""
+    tail = 0.5 * (1.0 - level)
+    low, high = np.quantile(ratios, [tail, 1.0 - tail])
+    return float(low), float(high)
+
+
 def median_ratio(
     a: Sequence[np.ndarray],
     b: Sequence[np.ndarray],
@@ -63,18 +75,16 @@ def median_ratio(
         a, b: per-trial error arrays (:func:`errors_by_trial`), at least two trials each.
         resamples: bootstrap resamples. level: the interval's coverage. seed: its RNG.
     """
-    if len(a) < 2 or len(b) < 2:
-        raise ValueError(f"need at least two trials in each table, got {len(a)} and {len(b)}")
+    _check_tables(a, b)
     rng = np.random.default_rng(seed)
     ratios = np.empty(resamples)
     for i in range(resamples):
         ia = rng.integers(0, len(a), len(a))
         ib = rng.integers(0, len(b), len(b))
         ratios[i] = _median([b[j] for j in ib]) / _median([a[j] for j in ia])
-    tail = 0.5 * (1.0 - level)
-    low, high = np.quantile(ratios, [tail, 1.0 - tail])
+    low, high = _interval(ratios, level)
     ma, mb = _median(a), _median(b)
-    return MedianRatio(ma, mb, mb / ma, float(low), float(high), level, len(a), len(b))
+    return MedianRatio(ma, mb, mb / ma, low, high, level, len(a), len(b))
 
 
 @dataclass(frozen=True)
@@ -112,8 +122,7 @@ def rms_ratio(
         a, b: per-trial error arrays (:func:`errors_by_trial`), at least two trials each.
         resamples: bootstrap resamples. level: the interval's coverage. seed: its RNG.
     """
-    if len(a) < 2 or len(b) < 2:
-        raise ValueError(f"need at least two trials in each table, got {len(a)} and {len(b)}")
+    _check_tables(a, b)
     rng = np.random.default_rng(seed)
 
     def resampled(trials: Sequence[np.ndarray]) -> tuple[float, np.ndarray]:
@@ -126,11 +135,8 @@ def rms_ratio(
     ra, boot_a = resampled(a)
     rb, boot_b = resampled(b)
     ratios = boot_b / boot_a
-    tail = 0.5 * (1.0 - level)
-    low, high = np.quantile(ratios, [tail, 1.0 - tail])
-    return RmsRatio(
-        ra, rb, rb / ra, float(low), float(high), float(ratios.std()), level, len(a), len(b)
-    )
+    low, high = _interval(ratios, level)
+    return RmsRatio(ra, rb, rb / ra, low, high, float(ratios.std()), level, len(a), len(b))
 
 
 def batch_disagreement(

@@ -130,6 +130,17 @@ def _get(d: dict[str, Any] | None, key: str) -> float:
     return math.nan if d is None or d.get(key) is None else float(d[key])
 
 
+def row_key(spec: TrialSpec, camera: str, visit: int) -> dict[str, str | int]:
+    """The columns that name a row: the trial (configuration, index, seed) and the visit."""
+    return {
+        "config": spec.config,
+        "trial": spec.trial,
+        "seed": spec.seed,
+        "camera": camera,
+        "visit": visit,
+    }
+
+
 def offset_columns(offset_mm: Any) -> dict[str, float]:
     """The columns of a calibrated camera's (3,) centre minus the true one in W, mm (NaN
     where not calibrated): what the repeatability of a camera visited twice is made of."""
@@ -180,11 +191,7 @@ def trial_rows(
         truth = c["truth"] if c else None
         rows.append(
             {
-                "config": spec.config,
-                "trial": spec.trial,
-                "seed": spec.seed,
-                "camera": camera,
-                "visit": visit,
+                **row_key(spec, camera, visit),
                 "calibrated": int(c is not None),
                 "distance_travelled_m": c["distance_travelled_m"] if c else math.nan,
                 "points": c["points"] if c else 0,
