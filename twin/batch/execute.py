@@ -509,7 +509,7 @@ class BatchRun:
             world_3d=world[1],
             local_pixel=local[0],
             local_3d=local[1],
-            predicted_transfer=_transfer_rms(parent, cal.position),
+            predicted_transfer=transfer_rms(parent, cal.position),
             predicted_calibration=np.sqrt(own),
             calibrated=cal.calibrated,
         )
@@ -526,7 +526,7 @@ class BatchRun:
         )
 
 
-def _transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArray[np.float64]:
+def transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArray[np.float64]:
     """(T,) RMS 3D error of a camera's centre (T, 3) from the parent's pose error at the
     station (:func:`twin.montecarlo.prediction.camera_position_covariance`), m."""
     lever = camera - parent.translation

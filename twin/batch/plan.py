@@ -42,7 +42,7 @@ from twin.campaign.records import (
     CalibrationRecord,
 )
 from twin.campaign.strategies import strategy_for
-from twin.campaign.strategy import CampaignView, Question
+from twin.campaign.strategy import CampaignView, Question, Strategy
 from twin.hal.devices import MobileBase
 from twin.hal.readings import DriveResult
 from twin.hal.recording import recorded
@@ -221,15 +221,17 @@ class PlanSession:
 
     Args:
         scenario: the scenario, with its noise (the instrument advertises it).
-        strategy: the strategy by name that :meth:`suggested` asks (default: the
-            scenario's).
+        strategy: the strategy that :meth:`suggested` asks, by name or as an instance
+            that serves this session only (default: the scenario's).
 
     The session holds a MuJoCo world: :meth:`close` it (or use it as a context manager).
     """
 
-    def __init__(self, scenario: Scenario, strategy: str | None = None) -> None:
+    def __init__(self, scenario: Scenario, strategy: str | Strategy | None = None) -> None:
         self.scenario = scenario
-        self.strategy = strategy_for(scenario, strategy)
+        self.strategy = (
+            strategy if isinstance(strategy, Strategy) else strategy_for(scenario, strategy)
+        )
         quiet = scenario.without_noise()
         world = build_world(quiet)
         self._recorder = _Recorder()
@@ -260,6 +262,16 @@ class PlanSession:
     def view(self) -> CampaignView:
         """What a strategy may look at to answer :attr:`question`."""
         return self._campaign.view
+
+    @property
+    def time(self) -> float:
+        """The campaign's time so far by the simulated clock (drives, shots, frames), s."""
+        return self._sim.rig.clock.now()
+
+    @property
+    def travelled(self) -> float:
+        """The parent's travel so far, m (between its fixed stations)."""
+        return self._campaign.journal.travelled
 
     @property
     def done(self) -> bool:

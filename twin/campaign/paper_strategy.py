@@ -39,6 +39,7 @@ from twin.campaign.strategy import (
 )
 from twin.scenario.geometry import floor_view
 from twin.scenario.robots import INSTRUMENT_HEIGHT
+from twin.scenario.schema import FormationSettings
 from twin.scenario.visibility import station_visibility
 
 ARRIVED = 0.05
@@ -115,25 +116,11 @@ class PaperStrategy(Strategy):
             s_now = self._arc
         ends, direction = self._leg_ends, self._direction
         step = self._step(view)
+        form = view.scenario.campaign.formation
         while ends:
             s_next = ends[0]
-            arrives = len(ends) == 1
-            next_xy = goal.station if arrives else path.at(s_next)
-            order = self._children_in_order(view, direction)
-            stops = formation(
-                view.scenario.space,
-                self.marker.cubes_body,
-                view.instrument_range,
-                path,
-                s_next,
-                parent_xy,
-                next_xy,
-                direction,
-                view.scenario.campaign.formation,
-                float(view.parent.translation[2]),
-                waiting_xy=view.robot_pose(order[1])[:2],
-            )
-            if stops is None:
+            leg = self.leg_between(view, goal, s_now, s_next, len(ends) == 1, direction, form)
+            if leg is None:
                 # No room for the children ahead: a shorter leg (down to a fraction of a step).
                 if abs(s_next - s_now) > SHORTEST_LEG * step:
                     ends.insert(0, 0.5 * (s_now + s_next))
@@ -145,19 +132,51 @@ class PaperStrategy(Strategy):
                     f"no formation for the leg to s = {s_next:.1f} m",
                 )
             ends.pop(0)
-            s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
-            moves = tuple(
-                self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
-                for child, stop in zip(order, stops, strict=True)
-            )
-            heading = (
-                goal.yaw if arrives else path.heading(s_next) + (0 if direction > 0 else math.pi)
-            )
-            parent = self._move(view.parent_name, s_now, s_next, Stop(next_xy, heading))
             self._reached_s = s_next
-            return Leg(moves, parent, arrives)
+            return leg
         self._leg_ends = None
         return None
+
+    def leg_between(
+        self,
+        view: CampaignView,
+        goal: Visit | Return,
+        s_now: float,
+        s_next: float,
+        arrives: bool,
+        direction: float,
+        form: FormationSettings,
+    ) -> Leg | None:
+        """The leg from arc length ``s_now`` to ``s_next`` (the goal's station if
+        ``arrives``) with the children in formation ``form``, or None where they have no
+        room. Changes nothing: the caller that takes the leg sets ``_reached_s``."""
+        path = self.path
+        parent_xy = view.parent.translation[:2]
+        next_xy = goal.station if arrives else path.at(s_next)
+        order = self._children_in_order(view, direction)
+        stops = formation(
+            view.scenario.space,
+            self.marker.cubes_body,
+            view.instrument_range,
+            path,
+            s_next,
+            parent_xy,
+            next_xy,
+            direction,
+            form,
+            float(view.parent.translation[2]),
+            waiting_xy=view.robot_pose(order[1])[:2],
+        )
+        if stops is None:
+            return None
+        s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
+        moves = tuple(
+            self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
+            for child, stop in zip(order, stops, strict=True)
+        )
+        heading = goal.yaw if arrives else path.heading(s_next) + (0 if direction > 0 else math.pi)
+        parent = self._move(view.parent_name, s_now, s_next, Stop(next_xy, heading))
+        return Leg(moves, parent, arrives)
 
     def _step(self, view: CampaignView) -> float:
         return view.scenario.campaign.formation.step

@@ -16,7 +16,7 @@ from twin.interruption import EXIT_INTERRUPTED, interruptible
 from twin.outputs import OutputError
 
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
-_COMMANDS = ["calibrate", "scene", "render", "detect", "run", "montecarlo"]
+_COMMANDS = ["calibrate", "scene", "render", "detect", "run", "montecarlo", "strategies"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -124,7 +124,8 @@ def obstacle_corners(obstacle: Obstacle) -> NDArray[np.float64]:
 
 
 # -- top view --------------------------------------------------------------------------------
-def _draw_space(ax: Axes, scenario: Scenario) -> None:
+def draw_space(ax: Axes, scenario: Scenario) -> None:
+    """The walls, the inaccessible areas (stairs hatched) and the tilted floor patches."""
     space = scenario.space
     (x0, x1), (y0, y1) = space.x_range, space.y_range
     t = space.wall_thickness
@@ -162,7 +163,8 @@ def _draw_space(ax: Axes, scenario: Scenario) -> None:
         )
 
 
-def _draw_cameras(ax: Axes, scenario: Scenario, colours: Mapping[str, str]) -> None:
+def draw_cameras(ax: Axes, scenario: Scenario, colours: Mapping[str, str]) -> None:
+    """Each camera with its name and its view of the floor (clipped to the space)."""
     space = scenario.space
     for cam in scenario.cameras:
         colour = colours.get(cam.name, "black")
@@ -301,8 +303,8 @@ def top_view(scenario: Scenario, results: Results, path: str | Path) -> Path:
     fig = Figure(figsize=(width, height), layout="constrained")
     ax = fig.add_subplot()
     colours = camera_colours(scenario, results)
-    _draw_space(ax, scenario)
-    _draw_cameras(ax, scenario, colours)
+    draw_space(ax, scenario)
+    draw_cameras(ax, scenario, colours)
     _draw_tracks(ax, scenario, results)
     _draw_data_points(ax, results, colours)
     _draw_visits(ax, scenario, results, colours)

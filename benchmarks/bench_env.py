@@ -1,0 +1,157 @@
+"""The Gymnasium environment's speed: decisions (steps) per second on the paper's hall.
+
+Run: ``.venv/bin/python benchmarks/bench_env.py [--seconds S]``
+
+For vector sizes 1, 8 and 64 in one process (``SyncVectorEnv``) and for 2 asynchronous
+workers (``AsyncVectorEnv``), each for S seconds of wall time (default 30):
+
+- ``random``: random masked moves (the issue's measure). Random play reaches new decisions
+  all the time, so the campaign runs every one of them;
+- ``paper``: the paper's policy, whose moves repeat from episode to episode: after the
+  first episode its campaign is read from the site's memo and only the noise runs.
+
+The ratio is against one environment with the same policy, measured in the same run; the
+absolute figure (steps/s per core, the target being 1000 with random moves) is printed with
+the machine's load average. Resets are counted in the time, not as steps.
+
+Then ``agreement`` (``--episodes N``, default 300): N episodes of the paper's policy played
+step by step in the environment against ``twin montecarlo --fidelity batch --strategy
+paper`` with N trials: per visit the RMS camera position error and their ratio (the issue
+asks for 15 %).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+import twin.sim  # noqa: F401  (headless rendering)
+from twin.envs import CpsCampaignEnv
+from twin.envs.comparison import play_episode
+from twin.envs.planner import clear_memos
+from twin.envs.policies import policy_named
+from twin.montecarlo import run_montecarlo
+from twin.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+HALL = ROOT / "scenarios" / "paper_hall.toml"
+
+
+def _make() -> CpsCampaignEnv:
+    return CpsCampaignEnv(HALL)
+
+
+def load() -> str:
+    one, five, fifteen = os.getloadavg()
+    return f"{one:.2f} {five:.2f} {fifteen:.2f}"
+
+
+def measure(mode: str, n: int, policy: str, seconds: float) -> tuple[float, int]:
+    """(steps/s, steps) of ``n`` environments of ``mode`` playing ``policy`` for
+    ``seconds``."""
+    clear_memos()
+    cls = gymnasium.vector.SyncVectorEnv if mode == "sync" else gymnasium.vector.AsyncVectorEnv
+    envs = cls([_make] * n)
+    rng = np.random.default_rng(0)
+    try:
+        _, info = envs.reset(seed=list(range(n)))
+        actors = None
+        if policy == "paper":
+            assert isinstance(envs, gymnasium.vector.SyncVectorEnv)
+            actors = [policy_named("paper")(e.unwrapped, k) for k, e in enumerate(envs.envs)]
+        restarting = np.zeros(n, dtype=bool)
+        steps = 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            actions = np.zeros(n, dtype=np.int64)
+            for k in range(n):
+                mask = info["action_mask"][k]
+                if restarting[k] or not mask.any():
+                    continue  # this step resets it
+                if actors is None:
+                    actions[k] = rng.choice(np.flatnonzero(mask))
+                else:
+                    one = {"decision": info["decision"][k], "action_mask": mask}
+                    actions[k] = actors[k]({}, one)
+            _obs, _, terminated, truncated, info = envs.step(actions)
+            steps += int((~restarting).sum())
+            if actors is not None:
+                for k in np.flatnonzero(restarting):
+                    actors[k] = policy_named("paper")(envs.envs[k].unwrapped, k)
+            restarting = terminated | truncated
+        return steps / (time.perf_counter() - start), steps
+    finally:
+        envs.close()
+
+
+def agreement(episodes: int, console: Console) -> None:
+    """The paper's policy in the environment against ``twin montecarlo --fidelity batch``."""
+    env = CpsCampaignEnv(HALL)
+    ours: dict[tuple[str, int], list[float]] = {}
+    start = time.perf_counter()
+    steps = 0
+    for seed in range(episodes):
+        steps += play_episode(env, "paper", seed)[0]
+        assert env.batch is not None
+        for visit, outcome in env.batch.visits.items():
+            ours.setdefault(visit, []).append(1e3 * float(outcome.position_error[0]))
+    played = time.perf_counter() - start
+    env.close()
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        rows = run_montecarlo(
+            load_scenario(HALL), tmp, episodes, fidelity="batch", strategy="paper"
+        )
+        batch = time.perf_counter() - start
+    theirs: dict[tuple[str, int], list[float]] = {}
+    for row in rows:
+        if row["config"] == "all":
+            theirs.setdefault((row["camera"], row["visit"]), []).append(row["position_error_mm"])
+    table = Table(title=f"the paper's policy, {episodes} episodes, against twin montecarlo")
+    for name in ("visit", "environment RMS mm", "montecarlo RMS mm", "ratio"):
+        table.add_column(name, justify="right")
+    for visit, values in ours.items():
+        a = float(np.sqrt(np.nanmean(np.square(values))))
+        b = float(np.sqrt(np.nanmean(np.square(theirs.get(visit, [np.nan])))))
+        table.add_row(f"{visit[0]} #{visit[1]}", f"{a:.1f}", f"{b:.1f}", f"{a / b:.3f}")
+    console.print(table)
+    console.print(
+        f"environment: {episodes} episodes, {steps} steps in {played:.1f} s "
+        f"({steps / played:.0f} steps/s); montecarlo: {batch:.1f} s; load {load()}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--episodes", type=int, default=300)
+    args = parser.parse_args()
+    console = Console(width=120)
+    table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
+    for name in ("vector", "envs", "policy", "steps", "steps/s", "x one env", "load 1/5/15"):
+        table.add_column(name, justify="right")
+    base: dict[str, float] = {}
+    for policy in ("paper", "random"):
+        for mode, n in (("sync", 1), ("sync", 8), ("sync", 64), ("async", 2)):
+            if policy == "paper" and mode == "async":
+                continue  # the policy reads the environment: it runs in the same process
+            rate, steps = measure(mode, n, policy, args.seconds)
+            base.setdefault(policy, rate)
+            table.add_row(mode, str(n), policy, str(steps), f"{rate:.1f}",
+                          f"{rate / base[policy]:.2f}", load())  # fmt: skip
+            console.print(f"{mode} {n} {policy}: {rate:.1f} steps/s")
+    console.print(table)
+    console.print("target: 1000 steps/s with random moves on one core")
+    agreement(args.episodes, console)
+
+
+if __name__ == "__main__":
+    main()

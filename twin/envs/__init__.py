@@ -1,0 +1,28 @@
+"""Gymnasium environments: the campaign with an agent choosing the robot group's moves.
+
+Importing this package registers ``camnet/CpsCampaign-v0`` (:class:`CpsCampaignEnv`), so
+``gymnasium.make("twin.envs:camnet/CpsCampaign-v0", scenario=...)`` works from a fresh
+interpreter.
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register, registry
+
+from twin.envs.campaign_env import CpsCampaignEnv
+from twin.envs.moves import FORMATIONS, MoveLayout
+
+__all__ = ["ENV_ID", "FORMATIONS", "MAX_EPISODE_STEPS", "CpsCampaignEnv", "MoveLayout"]
+
+ENV_ID = "camnet/CpsCampaign-v0"
+"""The environment's registered id."""
+
+MAX_EPISODE_STEPS = 400
+"""Decisions before an episode is truncated (the paper's hall takes about 40)."""
+
+if ENV_ID not in registry:
+    register(
+        id=ENV_ID,
+        entry_point="twin.envs.campaign_env:CpsCampaignEnv",
+        max_episode_steps=MAX_EPISODE_STEPS,
+    )
