@@ -2,8 +2,10 @@
 
 Run: ``.venv/bin/python benchmarks/bench_env.py [--seconds S]``
 
-For vector sizes 1, 8 and 64 in one process (``SyncVectorEnv``) and for 2 asynchronous
-workers (``AsyncVectorEnv``), each for S seconds of wall time (default 30):
+For vector sizes 1, 8 and 64 in one process, as the environment's own vector (``batched``:
+``gymnasium.make_vec``'s default, episodes that share their moves share their batch) and as
+Gymnasium's ``SyncVectorEnv``, and for 2 asynchronous workers (``AsyncVectorEnv``), each for
+S seconds of wall time (default 30):
 
 - ``random``: random masked moves (the issue's measure). Random play reaches new decisions
   all the time, so the campaign runs every one of them;
@@ -34,7 +36,7 @@ from rich.console import Console
 from rich.table import Table
 
 import twin.sim  # noqa: F401  (headless rendering)
-from twin.envs import CpsCampaignEnv
+from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.comparison import play_episode
 from twin.envs.planner import clear_memos
 from twin.envs.policies import policy_named
@@ -58,15 +60,18 @@ def measure(mode: str, n: int, policy: str, seconds: float) -> tuple[float, int]
     """(steps/s, steps) of ``n`` environments of ``mode`` playing ``policy`` for
     ``seconds``."""
     clear_memos()
-    cls = gymnasium.vector.SyncVectorEnv if mode == "sync" else gymnasium.vector.AsyncVectorEnv
-    envs = cls([_make] * n)
+    if mode == "batched":
+        envs = gymnasium.make_vec(ENV_ID, num_envs=n, scenario=str(HALL)).unwrapped
+    else:
+        cls = gymnasium.vector.SyncVectorEnv if mode == "sync" else gymnasium.vector.AsyncVectorEnv
+        envs = cls([_make] * n)
     rng = np.random.default_rng(0)
     try:
         _, info = envs.reset(seed=list(range(n)))
         actors = None
         if policy == "paper":
-            assert isinstance(envs, gymnasium.vector.SyncVectorEnv)
-            actors = [policy_named("paper")(e.unwrapped, k) for k, e in enumerate(envs.envs)]
+            singles = [e.unwrapped for e in envs.envs]  # type: ignore[attr-defined]
+            actors = [policy_named("paper")(e, k) for k, e in enumerate(singles)]
         restarting = np.zeros(n, dtype=bool)
         steps = 0
         start = time.perf_counter()
@@ -85,7 +90,7 @@ def measure(mode: str, n: int, policy: str, seconds: float) -> tuple[float, int]
             steps += int((~restarting).sum())
             if actors is not None:
                 for k in np.flatnonzero(restarting):
-                    actors[k] = policy_named("paper")(envs.envs[k].unwrapped, k)
+                    actors[k] = policy_named("paper")(singles[k], k)
             restarting = terminated | truncated
         return steps / (time.perf_counter() - start), steps
     finally:
@@ -138,9 +143,16 @@ def main() -> None:
     table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
     for name in ("vector", "envs", "policy", "steps", "steps/s", "x one env", "load 1/5/15"):
         table.add_column(name, justify="right")
-    base: dict[str, float] = {}
+    base: dict[str, float] = {}  # one environment of the environment's own vector
     for policy in ("paper", "random"):
-        for mode, n in (("sync", 1), ("sync", 8), ("sync", 64), ("async", 2)):
+        for mode, n in (
+            ("batched", 1),
+            ("batched", 8),
+            ("batched", 64),
+            ("sync", 8),
+            ("sync", 64),
+            ("async", 2),
+        ):
             if policy == "paper" and mode == "async":
                 continue  # the policy reads the environment: it runs in the same process
             rate, steps = measure(mode, n, policy, args.seconds)

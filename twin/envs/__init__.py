@@ -2,7 +2,9 @@
 
 Importing this package registers ``camnet/CpsCampaign-v0`` (:class:`CpsCampaignEnv`), so
 ``gymnasium.make("twin.envs:camnet/CpsCampaign-v0", scenario=...)`` works from a fresh
-interpreter.
+interpreter; ``gymnasium.make_vec`` gives :class:`twin.envs.vector.CpsCampaignVectorEnv`
+(episodes that share their moves share their batch), or with ``vectorization_mode="sync"``
+or ``"async"`` Gymnasium's own vectors.
 """
 
 from __future__ import annotations
@@ -24,5 +26,6 @@ if ENV_ID not in registry:
     register(
         id=ENV_ID,
         entry_point="twin.envs.campaign_env:CpsCampaignEnv",
+        vector_entry_point="twin.envs.vector:CpsCampaignVectorEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )

@@ -42,7 +42,7 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun, VisitOutcome, transfer_rms
-from twin.batch.plan import BatchPlan
+from twin.batch.plan import BatchPlan, Step
 from twin.envs.free_space import FreeSpace
 from twin.envs.moves import MoveLayout
 from twin.envs.observation import (
@@ -76,6 +76,7 @@ _EPISODE_STATE = frozenset(
         "_distance",
         "_predicted",
         "_steps",
+        "_row",
     }
 )
 """What pickling leaves out and rebuilds by replaying the episode's moves."""
@@ -169,8 +170,9 @@ class CpsCampaignEnv(gym.Env):
         self._free: FreeSpace | None = None
         self._free_for: Scenario | None = None
         self._episode: dict[str, Any] = {}
-        self._steps: list[object] = []
+        self._steps: list[Step] = []
         self._fallbacks = 0
+        self._row = 0  # the episode's trial in self.batch
 
     # -- episodes ---------------------------------------------------------------------------------
     def reset(
@@ -179,17 +181,33 @@ class CpsCampaignEnv(gym.Env):
         """Start a campaign. ``options["scenario"]``: a scenario file, a
         :class:`Scenario` or ``"random"`` for this episode (default: the environment's)."""
         super().reset(seed=seed)
+        scenario, trial_seed = self._draw(options)
+        self._start_episode(scenario, trial_seed)
+        return self._observation(), self._info()
+
+    # The episode's parts, which a vector of environments (twin.envs.vector) runs for many
+    # episodes at once: draw the site and the noise seed, prepare the campaign, attach the
+    # trials that execute it; then per move resolve it, take it, execute it, account for it.
+    def _draw(self, options: dict[str, Any] | None) -> tuple[Scenario, int]:
+        """The episode's site and noise seed, from the generator (after seeding it)."""
         options = options or {}
         scenario = (
             _scenario(options["scenario"]) if "scenario" in options else self.default_scenario
         )
         if scenario is None:
             scenario = random_site(self.np_random)
-        trial_seed = int(self.np_random.integers(2**62))
-        self._start_episode(scenario, trial_seed)
-        return self._observation(), self._info()
+        return scenario, int(self.np_random.integers(2**62))
 
     def _start_episode(self, scenario: Scenario, trial_seed: int) -> None:
+        steps = self._prepare(scenario, trial_seed)
+        assert self.planner is not None
+        batch = BatchRun(self.planner.plan, [trial_seed])
+        for step in steps:
+            batch.step(step)
+        self._attach(batch, 0, steps)
+
+    def _prepare(self, scenario: Scenario, trial_seed: int) -> tuple[Step, ...]:
+        """Start the episode's campaign; the plan's steps before the first decision."""
         if len(scenario.cameras) > self.max_cameras:
             raise ValueError(
                 f"{scenario.name}: {len(scenario.cameras)} cameras, more than max_cameras = "
@@ -204,11 +222,14 @@ class CpsCampaignEnv(gym.Env):
         if budget is None:
             budget = BUDGET_FACTOR * float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
         self.planner = CampaignPlanner(scenario, self.layout, budget)
-        self.batch = BatchRun(self.planner.plan, [trial_seed])
-        self._steps = list(self.planner.take_pending())
-        for step in self._steps:
-            self.batch.step(step)
         self._episode = {"scenario": scenario, "trial_seed": trial_seed, "moves": []}
+        return self.planner.take_pending()
+
+    def _attach(self, batch: BatchRun, row: int, steps: tuple[Step, ...]) -> None:
+        """The episode's trial is row ``row`` of ``batch``, which has executed ``steps``."""
+        assert self.planner is not None
+        self.batch, self._row = batch, row
+        self._steps = list(steps)
         self._time = self.planner.time
         self._distance = 0.0
         self._predicted = self._mean_predicted_mm()
@@ -218,45 +239,62 @@ class CpsCampaignEnv(gym.Env):
         self, action: int
     ) -> tuple[dict[str, NDArray[np.float64]], float, bool, bool, dict[str, Any]]:
         """Take a move (see :mod:`twin.envs.moves`)."""
+        action, fallback = self._resolve(action)
+        reward = self._apply(action)
+        return self._outcome(action, reward, fallback)
+
+    def _resolve(self, action: int) -> tuple[int, dict[str, Any] | None]:
+        """The move to take for ``action`` (its fallback if it is forbidden), and the
+        fallback's report (None when the move is allowed)."""
         planner = self.planner
         if planner is None:
             raise RuntimeError("call reset() before step()")
         if planner.done:
             raise RuntimeError("the campaign is over: call reset()")
         action = int(action)
-        fallback = None
         valid = 0 <= action < self.layout.size
-        if not (valid and planner.mask[action]):
-            what = self.layout.describe(action) if valid else f"action {action}"
-            if self.strict:
-                raise ValueError(f"{what} is not allowed now (see action_masks())")
-            taken = self.layout.fallback(action if valid else -1, planner.mask)
-            fallback = {
-                "requested": action,
-                "taken": taken,
-                "move": self.layout.describe(taken),
-                "reason": f"{what} is not allowed now",
-            }
-            self._fallbacks += 1
-            action = taken
-        reward = self._apply(action)
+        if valid and planner.mask[action]:
+            return action, None
+        what = self.layout.describe(action) if valid else f"action {action}"
+        if self.strict:
+            raise ValueError(f"{what} is not allowed now (see action_masks())")
+        taken = self.layout.fallback(action if valid else -1, planner.mask)
+        self._fallbacks += 1
+        return taken, {
+            "requested": action,
+            "taken": taken,
+            "move": self.layout.describe(taken),
+            "reason": f"{what} is not allowed now",
+        }
+
+    def _outcome(
+        self, action: int, reward: float, fallback: dict[str, Any] | None
+    ) -> tuple[dict[str, NDArray[np.float64]], float, bool, bool, dict[str, Any]]:
+        """What ``step`` returns after the move ``action``."""
+        assert self.planner is not None
         info = self._info()
         info["move"] = self.layout.describe(action)
         if fallback is not None:
             info["fallback"] = fallback
-        return self._observation(), reward, planner.done, False, info
+        return self._observation(), reward, self.planner.done, False, info
 
     def _apply(self, action: int) -> float:
-        """Take an allowed move; its reward."""
+        """Take an allowed move and execute its steps; its reward."""
+        assert self.planner is not None
+        assert self.batch is not None
+        steps = self.planner.act(action)
+        for step in steps:
+            self.batch.step(step)
+        return self._account(action, steps)
+
+    def _account(self, action: int, steps: tuple[Step, ...]) -> float:
+        """The move ``action`` was taken and ``steps`` executed: its reward."""
         planner, batch = self.planner, self.batch
         assert planner is not None
         assert batch is not None
-        steps = planner.act(action)
-        for step in steps:
-            batch.step(step)
         self._steps.extend(steps)
         self._episode["moves"].append(action)
-        distance = float(batch.distance[0])
+        distance = float(batch.distance[self._row])
         time_s = planner.time
         predicted = self._mean_predicted_mm()
         if self.reward_mode == "predicted":
@@ -322,7 +360,11 @@ class CpsCampaignEnv(gym.Env):
         """The trial's parent estimate: (3,) instrument centre m, yaw rad, (4, 4) covariance."""
         assert self.batch is not None
         parent = self.batch.cps.parent
-        return parent.translation[0], float(parent.yaw[0]), parent.covariance[0]
+        return (
+            parent.translation[self._row],
+            float(parent.yaw[self._row]),
+            parent.covariance[self._row],
+        )
 
     def _delivered(self) -> dict[str, VisitOutcome]:
         """Each camera's calibration the campaign delivers: of its visits that calibrated
@@ -330,9 +372,11 @@ class CpsCampaignEnv(gym.Env):
         assert self.batch is not None
         best: dict[str, tuple[float, VisitOutcome]] = {}
         for (camera, _), outcome in self.batch.visits.items():
-            if not bool(outcome.calibrated[0]):
+            if not bool(outcome.calibrated[self._row]):
                 continue
-            predicted = math.hypot(outcome.predicted_transfer[0], outcome.predicted_calibration[0])
+            predicted = math.hypot(
+                outcome.predicted_transfer[self._row], outcome.predicted_calibration[self._row]
+            )
             if camera not in best or predicted < best[camera][0]:
                 best[camera] = (predicted, outcome)
         return {camera: outcome for camera, (_, outcome) in best.items()}
@@ -349,14 +393,14 @@ class CpsCampaignEnv(gym.Env):
         for cam in self.scenario.cameras:
             position = np.asarray(cam.position, dtype=float)
             outcome = delivered.get(cam.name)
-            transfer = 0.0 if outcome is None else float(outcome.predicted_transfer[0])
-            own = 0.0 if outcome is None else float(outcome.predicted_calibration[0])
+            transfer = 0.0 if outcome is None else float(outcome.predicted_transfer[self._row])
+            own = 0.0 if outcome is None else float(outcome.predicted_calibration[self._row])
             out.append(
                 CameraState(
                     outcome is not None,
                     math.hypot(transfer, own),
                     own,
-                    float(transfer_rms(parent, position[None])[0]),
+                    float(transfer_rms(parent, position[None])[self._row]),
                     position,
                     here == cam.name,
                 )
@@ -398,7 +442,7 @@ class CpsCampaignEnv(gym.Env):
         """The true world-frame position error of each camera calibrated so far (the
         calibration delivered: of its visits, the one with the lowest predicted error), mm."""
         return {
-            camera: 1e3 * float(outcome.position_error[0])
+            camera: 1e3 * float(outcome.position_error[self._row])
             for camera, outcome in self._delivered().items()
         }
 
@@ -413,15 +457,15 @@ class CpsCampaignEnv(gym.Env):
         """The trial's parent position error at its last fix, mm."""
         assert self.batch is not None
         estimate, truth = self.batch.fixes[-1]
-        return 1e3 * float(np.linalg.norm(estimate.translation[0] - truth[0]))
+        return 1e3 * float(np.linalg.norm(estimate.translation[self._row] - truth[self._row]))
 
     def _child_estimate(self, child: str) -> NDArray[np.float64]:
         """(3,) a child's estimate: its CPS position (its own before CPS measured it), m,
         and its own yaw, rad."""
         assert self.batch is not None
-        believed = self.batch.robots[child].believed[0]
+        believed = self.batch.robots[child].believed[self._row]
         try:
-            xy = self.batch.cps.child_position(child)[0, :2]
+            xy = self.batch.cps.child_position(child)[self._row, :2]
         except ValueError:  # not measured yet
             xy = believed[:2]
         return np.array([xy[0], xy[1], believed[2]])
@@ -434,14 +478,14 @@ class CpsCampaignEnv(gym.Env):
         centre, yaw, covariance = self._parent_estimate()
         children = np.array([self._child_estimate(c) for c in batch.plan.children])
         goal = planner.goal_station
-        left = planner.budget_m - float(batch.distance[0])
+        left = planner.budget_m - float(batch.distance[self._row])
         return build_observation(
             decision=planner.decision,
             parent_xy=centre[:2],
             parent_yaw=yaw,
             parent_covariance=covariance,
             children_pose=children,
-            travel=(float(batch.distance[0]), left, planner.time),
+            travel=(float(batch.distance[self._row]), left, planner.time),
             goal_xy=None if goal is None or planner.decision != "leg" else goal.xy,
             cameras=self.camera_states(),
             max_cameras=self.max_cameras,
@@ -456,7 +500,7 @@ class CpsCampaignEnv(gym.Env):
         return {
             "camera_errors_mm": self.camera_errors_mm(),
             "parent_error_mm": self.parent_error_mm(),
-            "distance_m": float(self.batch.distance[0]),
+            "distance_m": float(self.batch.distance[self._row]),
             "time_s": self.planner.time,
             "action_mask": self.planner.mask.copy(),
             "decision": self.planner.decision,
@@ -473,5 +517,5 @@ class CpsCampaignEnv(gym.Env):
             raise RuntimeError("call reset() before render()")
         from twin.envs.render import top_view_rgb
 
-        track = [estimate.translation[0] for estimate, _ in self.batch.fixes]
-        return top_view_rgb(self.scenario, self.batch, track, self.camera_errors_mm())
+        track = [estimate.translation[self._row] for estimate, _ in self.batch.fixes]
+        return top_view_rgb(self.scenario, self.batch, track, self.camera_errors_mm(), self._row)

@@ -450,6 +450,11 @@ class CampaignPlanner:
 
     # -- where the campaign stands ---------------------------------------------------------------
     @property
+    def memo(self) -> PlanMemo:
+        """The site's memo (planners of one site in one process share it)."""
+        return self._memo
+
+    @property
     def plan(self) -> BatchPlan:
         """The campaign's plan before its first step."""
         return self._memo.plan

@@ -25,6 +25,7 @@ def top_view_rgb(
     batch: BatchRun,
     track: Sequence[NDArray[np.float64]],
     camera_errors_mm: Mapping[str, float],
+    row: int = 0,
 ) -> NDArray[np.uint8]:
     """(H, W, 3) the site from above: walls, obstacles, cameras and their views (a
     calibrated camera's name carries its true error), the route, the parent's estimated
@@ -44,7 +45,7 @@ def top_view_rgb(
     path = np.asarray(track, dtype=float).reshape(-1, 3)
     ax.plot(path[:, 0], path[:, 1], color="black", lw=1.0, marker="o", ms=2, zorder=6)
     for name, robot in batch.robots.items():
-        x, y, _ = robot.true[0]
+        x, y, _ = robot.true[row]
         parent = name == batch.plan.parent
         ax.plot(
             [x],
@@ -56,11 +57,11 @@ def top_view_rgb(
             zorder=9,
         )
     estimate = batch.cps.parent
-    cov = estimate.covariance[0, 1:3, 1:3]
+    cov = estimate.covariance[row, 1:3, 1:3]
     values, vectors = np.linalg.eigh(cov)
     angle = float(np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1])))
     w, h = 2 * 2 * ELLIPSE_SCALE * np.sqrt(np.clip(values[::-1], 0.0, None))
-    centre = estimate.translation[0, :2]
+    centre = estimate.translation[row, :2]
     ax.add_patch(
         Ellipse(tuple(centre), w, h, angle=angle, fc="none", ec="tab:red", lw=1.0, zorder=10)
     )
@@ -77,7 +78,7 @@ def top_view_rgb(
     ax.set_ylim(y0 - 1, y1 + 1)
     ax.set_aspect("equal")
     ax.set_title(
-        f"{scenario.name}: {float(batch.distance[0]):.1f} m travelled "
+        f"{scenario.name}: {float(batch.distance[row]):.1f} m travelled "
         f"(covariance x {ELLIPSE_SCALE:g}, 2 sigma)",
         fontsize=9,
     )

@@ -1,0 +1,88 @@
+"""The environment's own vector: episodes that share their moves share their batch, and
+every episode is the single environment's, bit for bit."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+
+import twin.sim  # noqa: F401  (headless rendering)
+from twin.envs import ENV_ID, CpsCampaignEnv
+from twin.envs.policies import policy_named
+from twin.envs.vector import CpsCampaignVectorEnv
+
+ROOT = Path(__file__).resolve().parents[3]
+CORRIDOR = ROOT / "scenarios" / "corridor.toml"
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+
+
+def _row(obs: dict, k: int) -> dict:
+    return {key: value[k] for key, value in obs.items()}
+
+
+def _equal(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+@pytest.mark.parametrize("policy", ["random", "paper"])
+def test_each_episode_is_the_single_environments(policy):
+    n = 4
+    vector = gymnasium.make_vec(f"twin.envs:{ENV_ID}", num_envs=n, scenario=str(CORRIDOR))
+    assert isinstance(vector.unwrapped, CpsCampaignVectorEnv)
+    singles = [CpsCampaignEnv(CORRIDOR) for _ in range(n)]
+    obs, info = vector.reset(seed=20)
+    single = [env.reset(seed=20 + k) for k, env in enumerate(singles)]
+    for k in range(n):
+        assert _equal(_row(obs, k), single[k][0])
+    actors = [policy_named(policy)(env, k) for k, env in enumerate(singles)]
+    done = np.zeros(n, dtype=bool)
+    groups = []
+    for _ in range(60):
+        actions = np.array(
+            [0 if done[k] else actors[k](single[k][0], single[k][-1]) for k in range(n)]
+        )
+        obs, rewards, terminated, truncated, info = vector.step(actions)
+        groups.append(len(vector.unwrapped._groups))
+        for k, env in enumerate(singles):
+            if done[k]:  # the vector reset it and ignored the action
+                single[k] = env.reset()
+                actors[k] = policy_named(policy)(env, k)
+                assert _equal(_row(obs, k), single[k][0])
+                continue
+            single[k] = env.step(int(actions[k]))
+            o, r, term, trunc, inf = single[k]
+            assert _equal(_row(obs, k), o)
+            assert rewards[k] == r and terminated[k] == term and truncated[k] == trunc
+            assert np.array_equal(info["action_mask"][k], inf["action_mask"])
+        done = terminated | truncated
+    if policy == "paper":
+        # The same moves on one site: one batch for the four episodes throughout.
+        assert set(groups) == {1}
+    else:
+        assert max(groups) > 1
+    vector.close()
+    for env in singles:
+        env.close()
+
+
+def test_truncation_and_bad_seeds():
+    vector = CpsCampaignVectorEnv(2, max_episode_steps=2, scenario=SMOKE)
+    _, info = vector.reset(seed=[1, 2])
+    masks = info["action_mask"]
+    # Travel moves keep the campaign going: the second step truncates it.
+    actions = np.array([np.flatnonzero(m)[0] for m in masks])
+    for _ in range(2):
+        _, _, terminated, truncated, info = vector.step(actions)
+        actions = np.array(
+            [np.flatnonzero(m)[0] if m.any() else 0 for m in info["action_mask"]]
+        )
+    assert truncated.all() and not terminated.any()
+    with pytest.raises(ValueError, match="3 seeds for 2 environments"):
+        vector.reset(seed=[1, 2, 3])
+    with pytest.raises(ValueError, match="num_envs"):
+        CpsCampaignVectorEnv(0, scenario=SMOKE)
+    assert vector.action_masks().shape == (2, vector.single_action_space.n)
+    vector.close()
