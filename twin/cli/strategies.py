@@ -22,7 +22,7 @@ OUTPUTS = ("episodes.csv", "summary.json", "tradeoff.png")
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``strategies`` subcommand."""
-    from twin.envs.policies import POLICIES
+    from twin.envs import POLICY_NAMES
 
     p = sub.add_parser(
         "strategies",
@@ -43,8 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--policy",
         nargs="+",
-        choices=sorted(POLICIES),
-        default=["paper", "side_by_side", "greedy", "random"],
+        choices=POLICY_NAMES,
+        default=list(POLICY_NAMES),
         help="policies to compare (default: all)",
     )
     p.add_argument(

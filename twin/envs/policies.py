@@ -152,7 +152,7 @@ POLICIES: dict[str, Policy] = {
     "greedy": greedy,
     "random": random,
 }
-"""Each policy by name."""
+"""Each policy by name (:data:`twin.envs.POLICY_NAMES`, in that order)."""
 
 
 def policy_named(name: str) -> Policy:

@@ -106,3 +106,10 @@ def test_the_fallback_is_an_allowed_move(mask, action):
         n = len(layout.step_factors)
         if mask[(action // n) * n : (action // n + 1) * n].any():
             assert taken // n == action // n
+
+
+def test_the_policy_names_are_the_policies():
+    from twin.envs import POLICY_NAMES
+    from twin.envs.policies import POLICIES
+
+    assert tuple(POLICIES) == POLICY_NAMES

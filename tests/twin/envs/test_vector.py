@@ -55,7 +55,9 @@ def test_each_episode_is_the_single_environments(policy):
             single[k] = env.step(int(actions[k]))
             o, r, term, trunc, inf = single[k]
             assert _equal(_row(obs, k), o)
-            assert rewards[k] == r and terminated[k] == term and truncated[k] == trunc
+            assert rewards[k] == r
+            assert terminated[k] == term
+            assert truncated[k] == trunc
             assert np.array_equal(info["action_mask"][k], inf["action_mask"])
         done = terminated | truncated
     if policy == "paper":
@@ -76,10 +78,9 @@ def test_truncation_and_bad_seeds():
     actions = np.array([np.flatnonzero(m)[0] for m in masks])
     for _ in range(2):
         _, _, terminated, truncated, info = vector.step(actions)
-        actions = np.array(
-            [np.flatnonzero(m)[0] if m.any() else 0 for m in info["action_mask"]]
-        )
-    assert truncated.all() and not terminated.any()
+        actions = np.array([np.flatnonzero(m)[0] if m.any() else 0 for m in info["action_mask"]])
+    assert truncated.all()
+    assert not terminated.any()
     with pytest.raises(ValueError, match="3 seeds for 2 environments"):
         vector.reset(seed=[1, 2, 3])
     with pytest.raises(ValueError, match="num_envs"):
