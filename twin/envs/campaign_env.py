@@ -42,7 +42,7 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun, VisitOutcome, transfer_rms
-from twin.batch.plan import BatchPlan, Step
+from twin.batch.plan import BatchPlan, Calibrate, Step
 from twin.envs.free_space import FreeSpace
 from twin.envs.moves import MoveLayout
 from twin.envs.observation import (
@@ -213,15 +213,16 @@ class CpsCampaignEnv(gym.Env):
                 f"{scenario.name}: {len(scenario.cameras)} cameras, more than max_cameras = "
                 f"{self.max_cameras}"
             )
-        self._close_episode()
-        self.scenario = scenario
-        if self._free_for is not scenario:
-            self._free, self._free_for = FreeSpace(scenario.space), scenario
         route = np.asarray(scenario.route.waypoints, dtype=float)
         budget = self.budget_m
         if budget is None:
             budget = BUDGET_FACTOR * float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
-        self.planner = CampaignPlanner(scenario, self.layout, budget)
+        planner = CampaignPlanner(scenario, self.layout, budget)  # may refuse the site
+        self._close_episode()
+        self.planner = planner
+        self.scenario = scenario
+        if self._free_for is not scenario:
+            self._free, self._free_for = FreeSpace(scenario.space), scenario
         self._episode = {"scenario": scenario, "trial_seed": trial_seed, "moves": []}
         return self.planner.take_pending()
 
@@ -329,10 +330,14 @@ class CpsCampaignEnv(gym.Env):
     def plan(self) -> BatchPlan:
         """The campaign the episode has played so far, as the batch fidelity's plan: run it
         for many trials with :class:`twin.batch.execute.BatchRun` (every trial of a policy
-        whose moves do not depend on the noise at once)."""
+        whose moves do not depend on the noise at once). Its ``planned_visits`` are the
+        visits the campaign calibrated (a visit it gave up is not in the plan's steps)."""
         if self.planner is None:
             raise RuntimeError("call reset() before reading the plan")
-        return replace(self.planner.plan, steps=tuple(self._steps), strategy="agent")
+        visits = tuple((s.camera, s.visit) for s in self._steps if isinstance(s, Calibrate))
+        return replace(
+            self.planner.plan, steps=tuple(self._steps), strategy="agent", planned_visits=visits
+        )
 
     @property
     def trial_seed(self) -> int:
@@ -349,6 +354,7 @@ class CpsCampaignEnv(gym.Env):
 
     def close(self) -> None:
         self._close_episode()
+        self._episode = {}  # a closed environment pickles without its episode
 
     def _close_episode(self) -> None:
         if self.planner is not None:

@@ -156,6 +156,13 @@ class CpsCampaignVectorEnv(VectorEnv):
         truncated = np.zeros(self.num_envs, dtype=bool)
         infos: dict[str, Any] = {}
         resetting = np.flatnonzero(self._autoreset).tolist()
+        # Every move is resolved before anything changes: with strict=True a forbidden move
+        # raises and leaves the vector as it was.
+        resolved = {
+            k: self.envs[k]._resolve(int(actions[k]))
+            for k in range(self.num_envs)
+            if k not in resetting
+        }
         if resetting:
             self._start(resetting, [None] * len(resetting), None)
         outcomes: dict[int, tuple[int, float, dict[str, Any] | None]] = {}
@@ -165,7 +172,7 @@ class CpsCampaignVectorEnv(VectorEnv):
             for k in group.members:
                 if k in resetting:
                     continue
-                taken, fallbacks[k] = self.envs[k]._resolve(int(actions[k]))
+                taken, fallbacks[k] = resolved[k]
                 parts.setdefault(taken, []).append(k)
             if not parts:
                 continue

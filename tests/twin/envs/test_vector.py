@@ -87,3 +87,22 @@ def test_truncation_and_bad_seeds():
         CpsCampaignVectorEnv(0, scenario=SMOKE)
     assert vector.action_masks().shape == (2, vector.single_action_space.n)
     vector.close()
+
+
+def test_a_strict_refusal_leaves_the_vector_as_it_was():
+    strict = CpsCampaignVectorEnv(2, strict=True, scenario=CORRIDOR)
+    plain = CpsCampaignVectorEnv(2, scenario=CORRIDOR)
+    _, info = strict.reset(seed=5)
+    plain.reset(seed=5)
+    masks = info["action_mask"]
+    allowed = np.array([np.flatnonzero(m)[0] for m in masks])
+    forbidden = allowed.copy()
+    forbidden[1] = np.flatnonzero(~masks[1])[0]
+    with pytest.raises(ValueError, match="not allowed now"):
+        strict.step(forbidden)
+    a, b = strict.step(allowed), plain.step(allowed)
+    for k in range(2):
+        assert _equal(_row(a[0], k), _row(b[0], k))
+    assert np.array_equal(a[1], b[1])
+    strict.close()
+    plain.close()
