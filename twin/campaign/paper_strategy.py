@@ -101,10 +101,7 @@ class PaperStrategy(Strategy):
         parent_xy = view.parent.translation[:2]
         if goal is not self._goal:  # a new travel
             self._goal, self._leg_ends = goal, None
-        if self._reached_s is not None:
-            # The parent fixed its pose after the last leg: the group is where it stands.
-            self._arc = path.project(parent_xy, near=self._reached_s)
-            self._reached_s = None
+        self._follow_parent(parent_xy)
         if self._leg_ends is None:
             s_now = path.project(parent_xy, near=self._arc)
             if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
@@ -136,6 +133,12 @@ class PaperStrategy(Strategy):
             return leg
         self._leg_ends = None
         return None
+
+    def _follow_parent(self, parent_xy: NDArray[np.float64]) -> None:
+        """After a leg the parent fixed its pose: the group is where it stands (``_arc``)."""
+        if self._reached_s is not None:
+            self._arc = self.path.project(parent_xy, near=self._reached_s)
+            self._reached_s = None
 
     def leg_between(
         self,

@@ -43,7 +43,7 @@ from twin.campaign.strategy import (
     Visit,
 )
 from twin.envs.moves import MoveLayout, formation_settings
-from twin.scenario.schema import Scenario
+from twin.scenario.schema import CalibrationVisit, Scenario
 
 __all__ = [
     "START",
@@ -104,10 +104,7 @@ class LegChoices(PaperStrategy):
         """(arc length of the parent, of the goal's station) on the route, m; None when the
         parent is at the station."""
         parent_xy = view.parent.translation[:2]
-        if self._reached_s is not None:
-            # The parent fixed its pose after the last leg: the group is where it stands.
-            self._arc = self.path.project(parent_xy, near=self._reached_s)
-            self._reached_s = None
+        self._follow_parent(parent_xy)
         if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
             return None
         return self.path.project(parent_xy, near=self._arc), self.path.project(goal.station)
@@ -168,17 +165,19 @@ class Decision:
 
 def visit_stations(scenario: Scenario, stations: dict[str, Station]) -> list[str]:
     """The station of each of the scenario's visits, in order, by name."""
-    out = []
-    for visit in scenario.calibration.visits:
-        xy, yaw = np.asarray(visit.station, dtype=float), math.radians(visit.yaw_deg)
-        out.append(
-            next(
-                n
-                for n, s in stations.items()
-                if s.camera == visit.camera and np.array_equal(s.xy, xy) and s.yaw == yaw
-            )
-        )
-    return out
+    return [
+        next(n for n, s in stations.items() if _is_visits(s, visit))
+        for visit in scenario.calibration.visits
+    ]
+
+
+def _is_visits(station: Station, visit: CalibrationVisit) -> bool:
+    """Whether ``station`` is where the scenario's ``visit`` calibrates."""
+    return (
+        station.camera == visit.camera
+        and np.array_equal(station.xy, np.asarray(visit.station, dtype=float))
+        and station.yaw == math.radians(visit.yaw_deg)
+    )
 
 
 def site_stations(scenario: Scenario, path: RoutePath) -> dict[str, Station]:
@@ -187,16 +186,14 @@ def site_stations(scenario: Scenario, path: RoutePath) -> dict[str, Station]:
     stations: dict[str, Station] = {}
     seen: dict[str, int] = {}
     for visit in scenario.calibration.visits:
-        xy = np.asarray(visit.station, dtype=float)
-        yaw = math.radians(visit.yaw_deg)
-        if any(
-            s.camera == visit.camera and np.array_equal(s.xy, xy) and s.yaw == yaw
-            for s in stations.values()
-        ):
+        if any(_is_visits(s, visit) for s in stations.values()):
             continue
+        xy = np.asarray(visit.station, dtype=float)
         seen[visit.camera] = seen.get(visit.camera, 0) + 1
         name = f"{visit.camera}@{seen[visit.camera]}"
-        stations[name] = Station(name, visit.camera, xy, yaw, path.project(xy))
+        stations[name] = Station(
+            name, visit.camera, xy, math.radians(visit.yaw_deg), path.project(xy)
+        )
     start = scenario.robots.parent
     xy = np.asarray(start.start_xy, dtype=float)
     stations[START] = Station(START, None, xy, math.radians(start.start_yaw_deg), path.project(xy))
