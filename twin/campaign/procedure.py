@@ -53,6 +53,7 @@ from twin.campaign.strategy import (
 )
 from twin.campaign.travel import CampaignAborted, Travel
 from twin.hal.conformance import check_rig_structure
+from twin.hal.errors import DeviceLostError
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.instruments.errors import TiltOutOfRangeError
@@ -192,7 +193,21 @@ class Campaign:
 
         Whoever answers starts its strategy first (:meth:`Strategy.start
         <twin.campaign.strategy.Strategy.start>` with :attr:`view`), as :meth:`run` does.
+
+        A device that is lost (:class:`twin.hal.errors.DeviceLostError`: a real device
+        stopped answering, or its link closed) ends the campaign: the failure is recorded
+        (``device_lost``) and what was calibrated before is kept.
         """
+        try:
+            return (yield from self._steps())
+        except DeviceLostError as exc:
+            self.journal.failure("device_lost", str(exc), device=exc.device, **exc.details)
+            self.journal.failure("campaign_aborted", f"a device is lost: {exc}")
+            self.journal.stage("done")
+            self.outcome.travelled = self.journal.travelled
+            return self.outcome
+
+    def _steps(self) -> Generator[Question, Any, CampaignOutcome]:
         try:
             self.rig.total_station.read_inclination()
         except TiltOutOfRangeError as exc:

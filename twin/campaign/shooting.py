@@ -21,8 +21,11 @@ from twin.hal.devices import TotalStation
 from twin.hal.readings import TotalStationMeasurement
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, chi2_statistic, chi2_threshold
 from twin.instruments.errors import (
+    DistanceMeasurementError,
     InconsistentMarkerError,
+    InstrumentBusyError,
     InstrumentError,
+    InstrumentTimeoutError,
     LineOfSightBlockedError,
     NoPrismInConeError,
 )
@@ -49,6 +52,10 @@ class ShotReport(Protocol):
 
 RETRIED = (NoPrismInConeError, LineOfSightBlockedError)
 """Failures worth another aim; others (out of range, tilt) are not."""
+
+REPEATED = (InstrumentBusyError, InstrumentTimeoutError, DistanceMeasurementError)
+"""Failures of a real instrument, not of the aim (busy, no answer in time, no distance):
+the same aim is tried again, within the same number of attempts."""
 
 
 def predict_cubes_level(
@@ -88,14 +95,18 @@ def _shoot(
     station: TotalStation, aim: NDArray[np.float64], retries: int, report: ShotReport, k: int
 ) -> TotalStationMeasurement | None:
     """One shot aimed at ``aim``, retried after a lost lock with aims swept around it."""
+    sweep = 0
     for attempt in range(retries + 1):
-        point = aim if attempt == 0 else _swept(aim, SWEEP_DEG[(attempt - 1) % len(SWEEP_DEG)])
-        station.point(point)
+        point = aim if sweep == 0 else _swept(aim, SWEEP_DEG[(sweep - 1) % len(SWEEP_DEG)])
         try:
+            station.point(point)
             return station.measure()
         except RETRIED as exc:
             kind = "lost_lock" if isinstance(exc, NoPrismInConeError) else "line_of_sight"
             report.failure(kind, str(exc), {"cube": k, "attempt": attempt})
+            sweep += 1
+        except REPEATED as exc:
+            report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
         except InstrumentError as exc:
             report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
             return None

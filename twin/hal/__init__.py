@@ -4,6 +4,8 @@
 - :mod:`.devices`: the abstract devices: :class:`Clock`, :class:`TotalStation`,
   :class:`MobileBase`, :class:`MarkerLeds`, :class:`Camera`, :class:`LedSensor`, and the
   only errors each may raise (:data:`DOCUMENTED_ERRORS`).
+- :mod:`.errors`: a device that is gone (:class:`DeviceLostError`), a camera without a
+  frame (:class:`NoFrameError`).
 - :mod:`.led_sensing`: :class:`ImageLedSensor`, an LED sensor made of a camera and LEDs.
 - :mod:`.rig`: :class:`Rig`, the devices of one campaign.
 - :mod:`.wrappers`: devices that pass every call to another (:func:`wrapped`), to change
@@ -26,6 +28,7 @@ from twin.hal.devices import (
     MobileBase,
     TotalStation,
 )
+from twin.hal.errors import DeviceLostError, NoFrameError
 from twin.hal.led_sensing import ImageLedSensor
 from twin.hal.readings import (
     CameraImage,
@@ -47,6 +50,7 @@ __all__ = [
     "Camera",
     "CameraImage",
     "Clock",
+    "DeviceLostError",
     "DriveResult",
     "DriveStatus",
     "Event",
@@ -56,6 +60,7 @@ __all__ = [
     "LedSwitch",
     "MarkerLeds",
     "MobileBase",
+    "NoFrameError",
     "OdometryReading",
     "Recorder",
     "Rig",

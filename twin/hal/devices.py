@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from calib.detection.sequence import SwitchingSequence
 from twin.closing import Closing
+from twin.hal.errors import DeviceLostError, NoFrameError
 from twin.hal.readings import (
     CameraImage,
     DriveResult,
@@ -30,6 +31,10 @@ from twin.hal.readings import (
     TotalStationMeasurement,
 )
 from twin.instruments.errors import (
+    DistanceMeasurementError,
+    InstrumentBusyError,
+    InstrumentFaultError,
+    InstrumentTimeoutError,
     LineOfSightBlockedError,
     NoPrismInConeError,
     OutOfRangeError,
@@ -37,24 +42,35 @@ from twin.instruments.errors import (
 )
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
+_INSTRUMENT_LINK = (
+    InstrumentBusyError,
+    InstrumentTimeoutError,
+    InstrumentFaultError,
+    DeviceLostError,
+)
+"""What any request to a real instrument may end with: it is busy, it did not answer in
+time, it answered an error code of its own, it is gone."""
+
 DOCUMENTED_ERRORS: Mapping[str, tuple[type[Exception], ...]] = MappingProxyType(
     {
         "Clock.now": (),
         "Clock.sleep": (ValueError,),
-        "TotalStation.point": (ValueError,),
+        "TotalStation.point": (ValueError, *_INSTRUMENT_LINK),
         "TotalStation.measure": (
             NoPrismInConeError,
             LineOfSightBlockedError,
             OutOfRangeError,
             TiltOutOfRangeError,
+            DistanceMeasurementError,
+            *_INSTRUMENT_LINK,
         ),
-        "TotalStation.read_inclination": (TiltOutOfRangeError,),
-        "MobileBase.drive_to": (),
-        "MobileBase.odometry": (),
-        "MobileBase.set_pose": (ValueError,),
-        "MarkerLeds.switch": (ValueError,),
-        "Camera.capture": (),
-        "LedSensor.observe": (ValueError,),
+        "TotalStation.read_inclination": (TiltOutOfRangeError, *_INSTRUMENT_LINK),
+        "MobileBase.drive_to": (DeviceLostError,),
+        "MobileBase.odometry": (DeviceLostError,),
+        "MobileBase.set_pose": (ValueError, DeviceLostError),
+        "MarkerLeds.switch": (ValueError, DeviceLostError),
+        "Camera.capture": (NoFrameError, DeviceLostError),
+        "LedSensor.observe": (ValueError, DeviceLostError),
     }
 )
 """The only errors each device method may raise (:func:`twin.hal.conformance.check_rig`
@@ -62,7 +78,9 @@ holds a device to them). Everything else a device reports is a reading: a drive 
 fails ends with a :class:`DriveStatus`, an LED that is not found has a failure in its
 :class:`LedObservation`. ``ValueError`` stands for a bad argument: a negative time, an aim
 that is not a finite non-zero (3,) point, a non-finite pose, not one flag per LED, a child
-the sensor has no LEDs of."""
+the sensor has no LEDs of. :class:`twin.hal.errors.DeviceLostError` is a device whose
+link is gone (a real device only); the instrument's link errors (busy, timeout, an error
+code of its own) are in :mod:`twin.instruments.errors`."""
 
 
 class Clock(Closing):
@@ -89,7 +107,9 @@ class TotalStation(Closing):
 
     Raises from :meth:`measure`: :class:`twin.instruments.errors.NoPrismInConeError` (the
     automatic aim found no prism: a lost lock), ``LineOfSightBlockedError``,
-    ``OutOfRangeError``, ``TiltOutOfRangeError``.
+    ``OutOfRangeError``, ``TiltOutOfRangeError``, ``DistanceMeasurementError``; from every
+    method of a real instrument also ``InstrumentBusyError``, ``InstrumentTimeoutError``,
+    ``InstrumentFaultError`` and :class:`twin.hal.errors.DeviceLostError`.
     """
 
     @property
@@ -185,7 +205,11 @@ class Camera(Closing):
 
     @abstractmethod
     def capture(self) -> CameraImage:
-        """Take one image now."""
+        """Take one image now (one begun after the call).
+
+        Raises:
+            twin.hal.errors.NoFrameError: no image came in the time allowed.
+        """
 
 
 class LedSensor(Closing):

@@ -11,6 +11,7 @@ import numpy as np
 from calib.detection import DetectorConfig, detect_leds
 from calib.detection.sequence import SwitchingSequence
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds
+from twin.hal.errors import NoFrameError
 from twin.hal.readings import LedObservation
 
 
@@ -63,6 +64,9 @@ class ImageLedSensor(LedSensor):
                 frames.append(self._camera.capture().image)
                 if self._interval > 0 and k + 1 < len(sequence.pattern):
                     self._clock.sleep(self._interval)
+        except NoFrameError:
+            # A sequence with a frame missing cannot be decoded: every LED is unseen.
+            return self._unseen(child, leds.count, "no_frame", len(frames))
         finally:
             leds.switch([False] * leds.count)
         found = detect_leds(frames, sequence, config=self._config, led_line=self._line)
@@ -84,6 +88,17 @@ class ImageLedSensor(LedSensor):
             sigma_px=sigma,
             failures=tuple(failures),
             frames=len(frames),
+        )
+
+    def _unseen(self, child: str, count: int, failure: str, frames: int) -> LedObservation:
+        return LedObservation(
+            camera=self.camera,
+            child=child,
+            timestamp=self._clock.now(),
+            pixels=np.full((count, 2), np.nan),
+            sigma_px=np.full(count, np.nan),
+            failures=(failure,) * count,
+            frames=frames,
         )
 
     def close(self) -> None:

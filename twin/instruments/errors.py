@@ -4,7 +4,8 @@ Every failure is an :class:`InstrumentError` carrying a :class:`FailureReason`, 
 can either catch the specific subclass or switch on ``error.reason``. A failure is never
 turned into a silent wrong number. Two kinds:
 
-- the instrument reports no number (out of range, no prism, blocked, tilted);
+- the instrument reports no number (out of range, no prism, blocked, tilted, no distance,
+  busy, no answer in time, an error code of its own);
 - the instrument reported numbers but they fail a chi-square consistency test
   (:class:`ConsistencyError`): the three cubes of a marker do not fit the assembly (a wrong
   prism locked, or the child moved between the shots), or the children measured after the
@@ -26,6 +27,10 @@ class FailureReason(enum.Enum):
     NO_PRISM_IN_CONE = "no_prism_in_cone"
     LINE_OF_SIGHT_BLOCKED = "line_of_sight_blocked"
     TILT_OUT_OF_RANGE = "tilt_out_of_range"
+    DISTANCE_FAILED = "distance_failed"
+    INSTRUMENT_BUSY = "instrument_busy"
+    INSTRUMENT_TIMEOUT = "instrument_timeout"
+    INSTRUMENT_FAULT = "instrument_fault"
     INCONSISTENT_MARKER = "inconsistent_marker"
     INCONSISTENT_CHILDREN = "inconsistent_children"
 
@@ -62,6 +67,36 @@ class TiltOutOfRangeError(InstrumentError):
     """The instrument is tilted beyond the compensator's working range."""
 
     reason = FailureReason.TILT_OUT_OF_RANGE
+
+
+class DistanceMeasurementError(InstrumentError):
+    """The distance meter returned no distance (no return signal, a signal too weak or
+    too strong, the beam interrupted). ``details`` may hold the device's ``code``."""
+
+    reason = FailureReason.DISTANCE_FAILED
+
+
+class InstrumentBusyError(InstrumentError):
+    """The instrument refused the request because it is still doing another (a
+    positioning, a measurement). Asking again later is safe."""
+
+    reason = FailureReason.INSTRUMENT_BUSY
+
+
+class InstrumentTimeoutError(InstrumentError):
+    """The instrument did not finish (or did not answer) in the time allowed. Asking again
+    is safe; a device that never answers again is lost
+    (:class:`twin.hal.errors.DeviceLostError`)."""
+
+    reason = FailureReason.INSTRUMENT_TIMEOUT
+
+
+class InstrumentFaultError(InstrumentError):
+    """The instrument answered with an error the driver does not map to one of the others
+    (an unknown or fatal return code). ``details`` hold the device's ``code``; the message
+    names it. Not retried."""
+
+    reason = FailureReason.INSTRUMENT_FAULT
 
 
 class ConsistencyError(InstrumentError):

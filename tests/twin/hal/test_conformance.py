@@ -180,7 +180,8 @@ def test_an_undocumented_error_is_named_with_what_is_allowed():
     _fails(
         rig,
         sim,
-        r"LedSensor\.observe raised KeyError: 'child1' \(twin\.hal documents ValueError\)",
+        r"LedSensor\.observe raised KeyError: 'child1' \(twin\.hal documents ValueError, "
+        r"DeviceLostError\)",
         observe=True,
     )
 
