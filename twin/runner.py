@@ -6,7 +6,7 @@ that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
 :class:`twin.campaign.Campaign` with its strategy. The simulation records its own truth
 (camera poses, the instrument's true pose at every CPS fix) beside the readings, under
 ``/truth/`` (:mod:`twin.truth`). The results are then computed from the log alone
-(:func:`twin.campaign.log_results.results_from_log`):
+(:func:`twin.campaign.log_results.results_from_log`), by :mod:`twin.campaign_run`:
 
 - ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
   calibration), ``DIR/figures/`` and ``DIR/report.md``.
@@ -14,9 +14,6 @@ that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
 
 from __future__ import annotations
 
-import datetime
-import json
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,16 +21,12 @@ from typing import Any
 import numpy as np
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
-from calib.io.camera_files import camera_from_dict, save_camera
-from twin.campaign import Campaign, Progress
-from twin.campaign.log_results import META, SUMMARY, results_from_log
+from twin.campaign import Progress
 from twin.campaign.strategies import strategy_for
-from twin.hal.recording import recorded
+from twin.campaign_run import RUN_OUTPUTS, run_campaign, write_cameras
 from twin.hal.rig import Rig
 from twin.instruments.marker import MarkerAssembly
-from twin.outputs import claim_folder, write_text_atomic
-from twin.record import McapRecorder, read_log
-from twin.report import write_report
+from twin.record import McapRecorder
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.limits import check_seed
 from twin.scenario.schema import Noise
@@ -101,53 +94,19 @@ def run_scenario(
         "noise": noise,
         "strategy": chosen.name,
     }
-    folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
-    out = folder.path
-    log_path = out / "log.mcap"
-    t0 = time.perf_counter()
-    with McapRecorder(log_path) as log:
-        log.record(
-            META,
-            {
-                "scenario": sc.name,
-                "scenario_file": sc.source,
-                "fidelity": fidelity,
-                "seed": sc.seed,
-                "noise": noise,
-                "strategy": chosen.name,
-                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            },
-            0.0,
-        )
+
+    def open_rig(log: McapRecorder) -> tuple[Rig, Callable[[], None], dict[str, float]]:
         world = build_world(sc, markers=built_markers(sc))
         sim = build_sim_rig(world, fidelity, advertised=advertised_noise, truth=log)
         try:
             devices = sim.rig if adapt_rig is None else adapt_rig(sim)
-            rig = recorded(devices, log)
-            Campaign(rig, sc, log, progress, chosen).run()
-            wall = time.perf_counter() - t0
-            timings = dict(sim.rig.timings)
-            if "observe" in timings:
-                timings["detection"] = max(timings.pop("observe") - timings.get("render", 0.0), 0.0)
-            timings["other"] = max(wall - sum(timings.values()), 0.0)
-            log.record(
-                SUMMARY,
-                {"wall_time_s": wall, "timings_s": timings},
-                rig.clock.now(),
-            )
-        finally:
+        except BaseException:
             sim.close()
-    results = results_from_log(read_log(log_path).messages, sc.campaign.pixel_size_mm)
-    write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
-    write_cameras(results, read_log(log_path).messages, out / "cameras")
-    if report:
-        write_report(sc, results, out)
-    folder.finished(calibrations=len(results["calibrations"]))
-    return results
+            raise
+        return devices, sim.close, sim.rig.timings
 
-
-RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
-"""What a run writes in its folder (and clears there with ``overwrite``)."""
+    meta = {"fidelity": fidelity, "seed": sc.seed, "noise": noise}
+    return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
 
 
 MARKER_STREAM = 4
@@ -172,20 +131,4 @@ def built_markers(scenario: Scenario) -> dict[str, MarkerAssembly]:
     return out
 
 
-def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:
-    """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
-    ``.camera_info.yaml`` (ROS) in ``folder``."""
-    from twin.campaign.records import CALIBRATION
-
-    folder.mkdir(parents=True, exist_ok=True)
-    written = []
-    for m in messages:
-        if m.topic != CALIBRATION:
-            continue
-        camera = camera_from_dict(m.data["camera_model"], "calibration")
-        stem = f"{m.data['camera']}_visit{m.data['visit']}"
-        for suffix in (".json", ".yaml", ".camera_info.yaml"):
-            path = folder / f"{stem}{suffix}"
-            save_camera(camera, path, name=m.data["camera"])
-            written.append(path)
-    return written
+__all__ = ["RUN_OUTPUTS", "built_markers", "run_scenario", "write_cameras"]

@@ -52,7 +52,7 @@ def _by_topic(messages: Iterable[Any]) -> dict[str, list[dict[str, Any]]]:
     return out
 
 
-def _points(points: list[Mapping[str, Any]]) -> tuple[NDArray, NDArray, NDArray]:
+def point_arrays(points: list[Mapping[str, Any]]) -> tuple[NDArray, NDArray, NDArray]:
     """(N, 3) LED points, (N, 2) pixels and (K, 2) child positions of data points."""
     if not points:
         return np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2))
@@ -118,7 +118,7 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
     references: dict[str, tuple[NDArray, NDArray]] = {}
     sizes = {(d["dataset"], d["camera"], d["visit"]): d["points"] for d in t.get(DATASET, [])}
     for cam in dict.fromkeys(p["camera"] for p in points if p["dataset"] == "reference"):
-        pts, pix, _ = _points(
+        pts, pix, _ = point_arrays(
             [p for p in points if p["dataset"] == "reference" and p["camera"] == cam]
         )
         n = sizes.get(("reference", cam, 0), len(pts))
@@ -136,7 +136,7 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
             for p in points
             if p["dataset"] == "visit" and p["camera"] == cam_name and p["visit"] == visit
         ]
-        pts, pix, xy = _points(mine)
+        pts, pix, xy = point_arrays(mine)
         pts, pix = pts[: rec["points"]], pix[: rec["points"]]
         ref = references.get(cam_name)
         entry: dict[str, Any] = {

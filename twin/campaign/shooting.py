@@ -92,10 +92,20 @@ centimetres of the parent's position error would turn its bearing too much."""
 
 
 def _shoot(
-    station: TotalStation, aim: NDArray[np.float64], retries: int, report: ShotReport, k: int
+    station: TotalStation,
+    aim: NDArray[np.float64],
+    retries: int,
+    report: ShotReport,
+    k: int,
+    failed: list[str] | None = None,
 ) -> TotalStationMeasurement | None:
-    """One shot aimed at ``aim``, retried after a lost lock with aims swept around it."""
+    """One shot aimed at ``aim``, retried after a lost lock with aims swept around it.
+
+    ``failed`` (when given) receives the kind of each failure of the instrument itself (not
+    of the aim) that ended the shot without a measurement: a prism search would not help.
+    """
     sweep = 0
+    aimed = True
     for attempt in range(retries + 1):
         point = aim if sweep == 0 else _swept(aim, SWEEP_DEG[(sweep - 1) % len(SWEEP_DEG)])
         try:
@@ -105,12 +115,22 @@ def _shoot(
             kind = "lost_lock" if isinstance(exc, NoPrismInConeError) else "line_of_sight"
             report.failure(kind, str(exc), {"cube": k, "attempt": attempt})
             sweep += 1
+            aimed = True
         except REPEATED as exc:
             report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
+            aimed = False
         except InstrumentError as exc:
             report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
+            if failed is not None:
+                failed.append(exc.reason.value)
             return None
-    report.failure("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
+    if aimed:
+        report.failure("shot_given_up", f"cube {k}: no lock after {retries + 1} aims", {"cube": k})
+    else:
+        message = f"cube {k}: no measurement after {retries + 1} attempts"
+        report.failure("shot_given_up", message, {"cube": k})
+        if failed is not None:
+            failed.append("shot_given_up")
     return None
 
 
@@ -250,11 +270,12 @@ def shoot_cubes(
         if all(np.linalg.norm(p - s.to_cartesian()) > DISTINCT for s in shots):
             shots.append(shot)
 
+    failed: list[str] = []
     for k in range(len(predicted)):
-        add(_shoot(station, predicted[k], retries, report, k))
+        add(_shoot(station, predicted[k], retries, report, k, failed))
     if cubes_body is None:
         return shots if len(shots) == len(predicted) else None
-    if not shots:
+    if not shots and not failed:
         # The child is not where it was thought to be (its odometry drifted): search.
         centre = predicted.mean(axis=0)
         for degrees in SEARCH_DEG:

@@ -16,7 +16,18 @@ from twin.interruption import EXIT_INTERRUPTED, interruptible
 from twin.outputs import OutputError
 
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
-_COMMANDS = ["calibrate", "scene", "render", "detect", "run", "montecarlo", "strategies"]
+_COMMANDS = [
+    "calibrate",
+    "scene",
+    "render",
+    "detect",
+    "run",
+    "montecarlo",
+    "strategies",
+    "emulate",
+    "devices",
+    "replay",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -49,9 +49,12 @@ class ScenarioError(ValueError):
         issues: every problem found, in file order where possible.
     """
 
+    what = "scenario"
+    """What kind of file it is, for the message."""
+
     def __init__(self, file: str | Path, issues: list[ScenarioIssue]) -> None:
         self.file = str(file)
         self.issues = list(issues)
-        lines = [f"{self.file}: {len(self.issues)} problem(s) in the scenario:"]
+        lines = [f"{self.file}: {len(self.issues)} problem(s) in the {self.what}:"]
         lines += [f"  - {issue}" for issue in self.issues]
         super().__init__("\n".join(lines))

@@ -65,22 +65,32 @@ def load_scenario(path: str | Path) -> Scenario:
             key, its value and what was expected.
     """
     path = Path(path)
+    return scenario_from_dict(read_mapping(path), file=path)
+
+
+def read_mapping(path: Path, error: type[ScenarioError] = ScenarioError) -> Mapping[str, Any]:
+    """The table a TOML file (YAML for ``.yaml``/``.yml``) holds.
+
+    Raises:
+        ``error`` (a :class:`ScenarioError`): the file cannot be read, does not parse, or
+            does not hold a table.
+    """
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        issue = ScenarioIssue("<file>", str(exc), None, "a readable file")
-        raise ScenarioError(path, [issue]) from None
+        raise error(path, [ScenarioIssue("<file>", str(exc), None, "a readable file")]) from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
             raw = yaml.safe_load(text)
         else:
             raw = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
-        raise ScenarioError(
+        raise error(
             path, [ScenarioIssue("<syntax>", str(exc), None, "valid TOML or YAML")]
         ) from None
     if not isinstance(raw, Mapping):
-        raise ScenarioError(path, [ScenarioIssue("<top>", "not a table", None, "key = value")])
+        raise error(path, [ScenarioIssue("<top>", "not a table", None, "key = value")])
+    return raw
     return scenario_from_dict(raw, file=path)
 
 
@@ -96,25 +106,32 @@ def scenario_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> S
         # JSON mode with strict types: lists become tuples, but "3" never becomes 3.0.
         sc = Scenario.model_validate_json(json.dumps(data, default=str), strict=True)
     except ValidationError as exc:
-        errors = exc.errors()
-        locs = [tuple(e["loc"]) for e in errors]
-        # A list whose items failed also reports "too short after validation": drop that.
-        errors = [
-            e
-            for e in errors
-            if not (
-                e["type"] == "too_short"
-                and any(
-                    len(loc) > len(e["loc"]) and loc[: len(e["loc"])] == tuple(e["loc"])
-                    for loc in locs
-                )
-            )
-        ]
-        raise ScenarioError(file, [_issue(err, data) for err in errors]) from None
+        raise ScenarioError(file, validation_issues(exc, data, Scenario)) from None
     issues = check_scenario(sc)
     if issues:
         raise ScenarioError(file, issues)
     return sc
+
+
+def validation_issues(
+    exc: ValidationError, data: Mapping[str, Any], root: type[BaseModel]
+) -> list[ScenarioIssue]:
+    """Each problem pydantic found validating ``data`` as ``root``, as a
+    :class:`ScenarioIssue` that names the key, the value and what was expected."""
+    errors = exc.errors()
+    locs = [tuple(e["loc"]) for e in errors]
+    # A list whose items failed also reports "too short after validation": drop that.
+    errors = [
+        e
+        for e in errors
+        if not (
+            e["type"] == "too_short"
+            and any(
+                len(loc) > len(e["loc"]) and loc[: len(e["loc"])] == tuple(e["loc"]) for loc in locs
+            )
+        )
+    ]
+    return [_issue(err, data, root) for err in errors]
 
 
 def _key(loc: tuple[Any, ...]) -> str:
@@ -153,10 +170,10 @@ def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:
             return annotation, constraints
 
 
-def _type_at(loc: tuple[Any, ...]) -> tuple[Any, list[Any]]:
-    """The type of the scenario's value at ``loc`` and the constraints on it; (None, [])
+def _type_at(loc: tuple[Any, ...], root: type[BaseModel]) -> tuple[Any, list[Any]]:
+    """The type of the value at ``loc`` of a ``root`` and the constraints on it; (None, [])
     where ``loc`` leads nowhere known."""
-    annotation: Any = Scenario
+    annotation: Any = root
     constraints: list[Any] = []
     for part in loc:
         if isinstance(part, int):
@@ -214,27 +231,27 @@ def _count(constraints: list[Any]) -> str | None:
     return f"{least} to {most} items" if least else f"at most {most} items"
 
 
-def _expected(err: Mapping[str, Any], loc: tuple[Any, ...]) -> str:
+def _expected(err: Mapping[str, Any], loc: tuple[Any, ...], root: type[BaseModel]) -> str:
     """What the user should have written where ``err`` happened."""
     typ = err["type"]
     if "expected" in err.get("ctx", {}):
         return str(err["ctx"]["expected"])
     if typ in _RANGE_ERRORS:
-        return _range(*_type_at(loc)) or _EXPECTED.get(typ) or err["msg"]
+        return _range(*_type_at(loc, root)) or _EXPECTED.get(typ) or err["msg"]
     if typ in ("too_short", "too_long"):
-        return _count(_type_at(loc)[1]) or err["msg"]
+        return _count(_type_at(loc, root)[1]) or err["msg"]
     if typ == "value_error":
         return "a consistent value (see the schema's documentation)"
     return _EXPECTED.get(typ) or err["msg"]
 
 
-def _issue(err: Mapping[str, Any], data: Mapping[str, Any]) -> ScenarioIssue:
+def _issue(err: Mapping[str, Any], data: Mapping[str, Any], root: type[BaseModel]) -> ScenarioIssue:
     loc = tuple(err["loc"])
     typ = err["type"]
     if typ == "extra_forbidden":
-        model = _type_at(loc[:-1])[0]
+        model = _type_at(loc[:-1], root)[0]
         keys = ", ".join(model.model_fields) if _is_model(model) else "a documented key"
         return ScenarioIssue(_key(loc), "unknown key", None, f"one of: {keys}")
     value = None if typ == "missing" else _value_at(data, loc)
     problem = "missing" if typ == "missing" else err["msg"].removeprefix("Value error, ")
-    return ScenarioIssue(_key(loc), problem, value, _expected(err, loc))
+    return ScenarioIssue(_key(loc), problem, value, _expected(err, loc, root))

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
 from calib.detection import DetectionFailure
@@ -97,6 +98,76 @@ def _draw_hidden(rate: float, rng: np.random.Generator) -> frozenset[int]:
     if rate <= 0:
         return frozenset()
     return frozenset(int(k) for k in np.flatnonzero(rng.random(N_LEDS) < rate))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LedView:
+    """How a camera sees a child's LEDs now, by the geometric fidelity's rules.
+
+    Attributes:
+        pixels: (N_LEDS, 2) true pixel of each LED's centre (the camera model's projection,
+            distortion included), NaN behind the camera.
+        radius_px: (N_LEDS,) each LED's radius in the image, px (focal length x radius /
+            distance).
+        failures: per LED, None when it is wholly inside the image and wholly visible, else
+            the :class:`calib.detection.DetectionFailure` value: ``not_in_view``,
+            ``occluded`` (wholly hidden, or an injected hidden LED) or ``partial``.
+    """
+
+    pixels: NDArray[np.float64]
+    radius_px: NDArray[np.float64]
+    failures: tuple[str | None, ...]
+
+    @property
+    def found(self) -> NDArray[np.bool_]:
+        """(N_LEDS,) which LEDs are wholly seen."""
+        return np.array([f is None for f in self.failures])
+
+
+def view_leds(
+    world: World,
+    camera: TsaiCamera | OpenCVCamera,
+    child: str,
+    radii: Mapping[tuple[str, int], float],
+    hidden: frozenset[int] = frozenset(),
+) -> LedView:
+    """Project a child's LEDs through ``camera`` and decide which the camera sees wholly.
+
+    An LED is seen when it is inside the image by more than its own image radius and
+    wholly visible from the camera (MuJoCo ray casts to its centre and outline,
+    :func:`twin.sim.capture.led_visible_fraction`); partly hidden it is ``partial``, wholly
+    hidden ``occluded``, outside ``not_in_view``. LEDs in ``hidden`` (inside the image)
+    are ``occluded`` without a ray cast.
+
+    Args:
+        world: the world, in its current state. camera: the true camera model.
+        child: the child's name. radii: every LED's radius, m (:func:`led_radii`).
+        hidden: indices of LEDs hidden by an injected fault.
+    """
+    _, leds = world.marker_points(child)
+    pixels = project_or_nan(camera, leds)
+    origin = camera.position
+    radius_px = np.full(N_LEDS, np.nan)
+    failures: list[str | None] = []
+    for k in range(N_LEDS):
+        radius = radii[(child, k)]
+        distance = float(np.linalg.norm(leds[k] - origin))
+        margin = _focal(camera) * radius / distance
+        radius_px[k] = margin
+        if not in_image(pixels[k : k + 1], camera.image_size, margin)[0]:
+            failures.append(DetectionFailure.NOT_IN_VIEW.value)
+            continue
+        if k in hidden:
+            failures.append(DetectionFailure.OCCLUDED.value)
+            continue
+        seen = led_visible_fraction(world, origin, leds[k], radius)
+        if seen < 1.0:
+            failures.append(
+                DetectionFailure.OCCLUDED.value if seen == 0 else DetectionFailure.PARTIAL.value
+            )
+            continue
+        failures.append(None)
+    return LedView(pixels=pixels, radius_px=radius_px, failures=tuple(failures))
 
 
 class RenderLedSensor(ImageLedSensor):
@@ -191,33 +262,14 @@ class GeometricLedSensor(LedSensor):
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         if child not in {c.name for c in self.world.scenario.robots.children}:
             raise ValueError(f"no child {child!r}")
-        cam = self._model
-        _, leds = self.world.marker_points(child)
-        pixels = project_or_nan(cam, leds)
-        origin = cam.position
         hidden = _draw_hidden(self.hidden_led_rate, self.fault_rng)
+        view = view_leds(self.world, self._model, child, self._radius, hidden)
         out = np.full((N_LEDS, 2), np.nan)
         sigma = np.full(N_LEDS, np.nan)
-        failures: list[str | None] = []
-        for k in range(N_LEDS):
-            radius = self._radius[(child, k)]
-            distance = float(np.linalg.norm(leds[k] - origin))
-            margin = _focal(cam) * radius / distance
-            if not in_image(pixels[k : k + 1], cam.image_size, margin)[0]:
-                failures.append(DetectionFailure.NOT_IN_VIEW.value)
-                continue
-            if k in hidden:
-                failures.append(DetectionFailure.OCCLUDED.value)
-                continue
-            seen = led_visible_fraction(self.world, origin, leds[k], radius)
-            if seen < 1.0:
-                failures.append(
-                    DetectionFailure.OCCLUDED.value if seen == 0 else DetectionFailure.PARTIAL.value
-                )
-                continue
-            out[k] = pixels[k] + self.sigma_px * self.rng.standard_normal(2)
+        for k in np.flatnonzero(view.found):
+            out[k] = view.pixels[k] + self.sigma_px * self.rng.standard_normal(2)
             sigma[k] = self.sigma_px
-            failures.append(None)
+        failures = view.failures
         if hasattr(self.clock, "pass_time"):
             self.clock.pass_time(len(sequence.pattern) * FRAME_INTERVAL)
         return LedObservation(

@@ -1,0 +1,89 @@
+"""``twin devices``, ``twin run --rig`` and ``twin emulate`` at the command line: what a
+user sees first on real hardware, and the named errors of bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from twin.cli import main
+from twin.emulators.emulation import start_emulation
+
+ROOT = Path(__file__).resolve().parents[3]
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+
+
+@pytest.fixture
+def emulation():
+    em = start_emulation(SMOKE, time_scale=30.0, camera_fps=100.0)
+    try:
+        yield em
+    finally:
+        em.close()
+
+
+def test_devices_lists_what_every_device_said_and_the_leds_a_camera_saw(
+    emulation, tmp_path, capsys
+):
+    rig = emulation.write_rig_file(tmp_path / "rig.toml")
+    assert main(["devices", str(rig)]) == 0
+    out = capsys.readouterr().out
+    assert "total station total_station: name TS16 R500; serial 1234567" in out
+    for robot, model in (("parent", "p3at"), ("child1", "p3dx"), ("child2", "p3dx")):
+        assert f"robot {robot}: name {robot}; type Pioneer; subtype {model}; battery_v" in out
+    assert "camera cam1:" in out
+    assert "resolution (320, 240)" in out
+    # The children stand where cam1 sees them at the start: a blink shows every LED.
+    assert "LEDs child1: found 4 of 4" in out
+    assert "LEDs child2: found 4 of 4" in out
+    # Nothing moved and every session was closed.
+    for name, robot in emulation.robots.items():
+        assert not robot.body.moving, name
+        assert not robot.session_open, name
+
+
+def test_devices_reports_a_device_that_does_not_answer(emulation, tmp_path, capsys):
+    rig = emulation.write_rig_file(tmp_path / "rig.toml")
+    text = rig.read_text().replace(emulation.robots["child2"].address, "socket://127.0.0.1:9")
+    rig.write_text(text)
+    assert main(["devices", str(rig), "--no-blink"]) == 1
+    out = capsys.readouterr().out
+    assert "NO  robot child2:" in out
+    assert "ok  robot child1:" in out
+
+
+def test_a_bad_rig_file_is_named_and_nothing_runs(tmp_path, capsys):
+    rig = tmp_path / "rig.toml"
+    rig.write_text((ROOT / "examples" / "paper_rig.toml").read_text().replace("p3at", "p3"))
+    assert main(["run", str(SMOKE), "--rig", str(rig), "--out", str(tmp_path / "o")]) == 2
+    out = capsys.readouterr().out
+    assert f"{rig}: 1 problem(s) in the rig file" in out
+    assert "robots[0].model" in out
+    assert not (tmp_path / "o").exists()
+    assert main(["devices", str(rig)]) == 2
+
+
+def test_twin_options_are_refused_with_a_rig(tmp_path, capsys):
+    rig = ROOT / "examples" / "paper_rig.toml"
+    code = main(["run", str(SMOKE), "--rig", str(rig), "--seed", "0", "--out", str(tmp_path)])
+    assert code == 2
+    assert "--seed apply to the twin, not to --rig" in capsys.readouterr().out
+
+
+def test_a_device_that_cannot_be_opened_is_named(tmp_path, capsys):
+    rig = tmp_path / "rig.toml"
+    text = (ROOT / "examples" / "paper_rig.toml").read_text()
+    rig.write_text(text.replace("/dev/ttyUSB0", str(tmp_path / "no-such-port")))
+    code = main(["run", str(SMOKE), "--rig", str(rig), "--out", str(tmp_path / "o")])
+    assert code == 2
+    out = capsys.readouterr().out
+    assert "total station at" in out
+    assert "no-such-port" in out
+
+
+def test_emulate_refuses_a_bad_scenario(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = 3\n")
+    assert main(["emulate", str(bad), "--rig-out", str(tmp_path / "rig.toml")]) == 2
+    assert not (tmp_path / "rig.toml").exists()

@@ -1,0 +1,395 @@
+"""The camera drivers: OpenCV against the MJPEG emulator on localhost, image sequences and
+video files in a temporary folder; GenICam against a stand-in for ``harvesters``."""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+import types
+from collections.abc import Callable, Iterator
+
+import cv2
+import numpy as np
+import pytest
+
+from twin.drivers.camera import GenICamCamera, OpenCvCamera
+from twin.drivers.clock import WallClock
+from twin.emulators.camera import MjpegServer
+from twin.hal.errors import DeviceLostError, NoFrameError
+
+W, H = 160, 120
+JPEG_DN = 3  # a flat grey survives JPEG at quality 95 to within a few DN
+
+
+def level(k: int) -> int:
+    """The grey level that codes counter ``k`` (steps of 8 DN, far above JPEG's error)."""
+    return 16 + 8 * (k % 28)
+
+
+class Counter:
+    """Frames of a flat grey that codes a counter the test changes; counts the frames made."""
+
+    def __init__(self) -> None:
+        self.k = 0
+        self.made = 0
+        self.lock = threading.Lock()
+
+    def __call__(self) -> np.ndarray:
+        with self.lock:
+            self.made += 1
+            return np.full((H, W), level(self.k), np.uint8)
+
+
+@pytest.fixture
+def serve() -> Iterator[Callable[..., MjpegServer]]:
+    servers: list[MjpegServer] = []
+
+    def start(frames: Callable[[], np.ndarray], **kwargs: object) -> MjpegServer:
+        server = MjpegServer(frames, **kwargs)
+        servers.append(server)
+        return server.start()
+
+    try:
+        yield start
+    finally:
+        for server in servers:
+            server.close()
+
+
+@pytest.fixture
+def open_camera() -> Iterator[Callable[..., OpenCvCamera]]:
+    cameras: list[OpenCvCamera] = []
+
+    def make(source: int | str, **kwargs: object) -> OpenCvCamera:
+        kwargs.setdefault("name", "cam1")
+        kwargs.setdefault("clock", WallClock())
+        camera = OpenCvCamera(source, **kwargs)
+        cameras.append(camera)
+        return camera
+
+    try:
+        yield make
+    finally:
+        for camera in cameras:
+            camera.close()
+
+
+def grey_of(image: np.ndarray) -> int:
+    return int(np.median(image))
+
+
+# -- MJPEG over HTTP -------------------------------------------------------------------------
+def test_reads_the_mjpeg_stream_with_its_resolution(serve, open_camera) -> None:
+    frames = Counter()
+    frames.k = 5
+    server = serve(frames, fps=30)
+    cam = open_camera(server.url)
+    assert cam.image_size == (W, H)
+    info = cam.identify()
+    assert info["resolution"] == (W, H)
+    assert info["source"] == server.url
+    assert info["backend"] == "FFMPEG"
+    assert info["live"] is True
+    shot = cam.capture()
+    assert shot.camera == "cam1"
+    assert shot.image.dtype == np.uint8
+    assert shot.image.shape == (H, W)
+    assert abs(grey_of(shot.image) - level(5)) <= JPEG_DN
+
+
+def test_colour_frames_are_rgb(serve, open_camera) -> None:
+    rgb = np.zeros((H, W, 3), np.uint8)
+    rgb[..., 0], rgb[..., 1], rgb[..., 2] = 200, 100, 30
+    server = serve(lambda: rgb, fps=30)
+    image = open_camera(server.url, grayscale=False).capture().image
+    assert image.shape == (H, W, 3)
+    np.testing.assert_allclose(np.median(image, axis=(0, 1)), [200, 100, 30], atol=JPEG_DN)
+
+
+def test_capture_returns_a_frame_made_after_the_call(serve, open_camera) -> None:
+    """The LEDs switch, then capture(): the frame returned shows the switch, every time."""
+    frames = Counter()
+    server = serve(frames, fps=20)
+    clock = WallClock()
+    cam = open_camera(server.url, clock=clock)
+    stamps = []
+    for k in range(1, 16):
+        with frames.lock:
+            frames.k = k
+        before = clock.now()
+        shot = cam.capture()
+        assert abs(grey_of(shot.image) - level(k)) <= JPEG_DN, f"switch {k}: an older frame"
+        assert shot.timestamp > before
+        stamps.append(shot.timestamp)
+    assert np.all(np.diff(stamps) > 0)
+
+
+def test_stalled_stream_gives_no_frame_within_the_timeout_in_rig_seconds(
+    serve, open_camera
+) -> None:
+    server = serve(Counter(), fps=30)
+    # 5 rig seconds at 10 rig seconds per wall second: 0.5 s of waiting.
+    cam = open_camera(server.url, clock=WallClock(time_scale=10.0), timeout_s=5.0)
+    cam.capture()
+    server.stalled = True
+    t0 = time.monotonic()
+    with pytest.raises(NoFrameError, match=r"no frame within 5\.0 s") as caught:
+        cam.capture()
+    waited = time.monotonic() - t0
+    assert 0.45 <= waited < 2.0
+    assert caught.value.camera == "cam1"
+    server.stalled = False
+    assert cam.capture().image.shape == (H, W)  # the camera delivers again
+
+
+def test_a_dropped_connection_is_reopened(serve, open_camera) -> None:
+    frames = Counter()
+    server = serve(frames, fps=30)
+    cam = open_camera(server.url, timeout_s=2.0)
+    cam.capture()
+    server.drop()
+    with frames.lock:
+        frames.k = 3
+    assert abs(grey_of(cam.capture().image) - level(3)) <= JPEG_DN
+
+
+def test_a_stream_gone_for_good_is_a_lost_device(serve, open_camera) -> None:
+    server = serve(Counter(), fps=30)
+    cam = open_camera(server.url, timeout_s=0.5)
+    cam.capture()
+    server.close()
+    lost = None
+    for _ in range(5):  # a capture may time out before the reader has given up reopening
+        try:
+            cam.capture()
+        except NoFrameError:
+            continue
+        except DeviceLostError as exc:
+            lost = exc
+            break
+    assert lost is not None, "the reader never gave the stream up"
+    assert lost.device == "cam1"
+    assert "could not be reopened" in str(lost)
+
+
+def test_unopenable_sources_are_lost_devices(serve, open_camera, tmp_path) -> None:
+    server = serve(Counter())
+    url = server.url
+    server.close()  # nothing listens on its port any more
+    for source in (url, str(tmp_path / "missing.avi"), str(tmp_path / "none_%04d.png")):
+        with pytest.raises(DeviceLostError, match="cannot open") as caught:
+            open_camera(source, name="camX", timeout_s=1.0)
+        assert caught.value.device == "camX"
+
+
+def test_a_wrong_image_size_is_named(serve, open_camera) -> None:
+    server = serve(Counter())
+    with pytest.raises(ValueError, match=r"cam1: image_size \(320, 240\).*\(160, 120\)"):
+        open_camera(server.url, image_size=(320, 240))
+    assert open_camera(server.url, image_size=(W, H)).image_size == (W, H)
+
+
+def test_close_twice_stops_the_reader(serve, open_camera) -> None:
+    server = serve(Counter())
+    cam = open_camera(server.url, name="closing")
+    cam.capture()
+    cam.close()
+    cam.close()
+    assert not any(t.name == "camera-closing" for t in threading.enumerate())
+    with pytest.raises(DeviceLostError, match="closed"):
+        cam.capture()
+
+
+# -- files ---------------------------------------------------------------------------------
+def colour(k: int) -> tuple[int, int, int]:
+    """(r, g, b) of frame ``k``."""
+    return (20 + 40 * k, 200 - 30 * k, 60 + 10 * k)
+
+
+def write_sequence(folder, first: int, count: int) -> str:
+    folder.mkdir()
+    for k in range(count):
+        r, g, b = colour(k)
+        bgr = np.zeros((48, 64, 3), np.uint8)
+        bgr[...] = (b, g, r)
+        assert cv2.imwrite(str(folder / f"{first + k:04d}.png"), bgr)
+    return str(folder / "%04d.png")
+
+
+@pytest.mark.parametrize("first", [0, 1, 7])
+def test_image_sequence_gives_the_next_frame_then_ends(open_camera, tmp_path, first) -> None:
+    pattern = write_sequence(tmp_path / "frames", first, 3)
+    cam = open_camera(pattern, grayscale=False)
+    assert cam.image_size == (64, 48)
+    assert cam.identify()["live"] is False
+    for k in range(3):
+        image = cam.capture().image
+        assert image.shape == (48, 64, 3)
+        np.testing.assert_array_equal(image[0, 0], colour(k))
+    with pytest.raises(NoFrameError, match="no more frames"):
+        cam.capture()
+
+
+def test_image_sequence_in_grey(open_camera, tmp_path) -> None:
+    cam = open_camera(write_sequence(tmp_path / "grey", 0, 2))
+    image = cam.capture().image
+    assert image.shape == (48, 64)
+    r, g, b = colour(0)
+    assert abs(int(image[0, 0]) - (0.299 * r + 0.587 * g + 0.114 * b)) <= 1
+
+
+def test_video_file(open_camera, tmp_path) -> None:
+    path = str(tmp_path / "clip.avi")
+    writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (W, H))
+    assert writer.isOpened()
+    try:
+        for k in range(5):
+            writer.write(np.full((H, W, 3), level(k), np.uint8))
+    finally:
+        writer.release()
+    cam = open_camera(path)
+    info = cam.identify()
+    assert info["resolution"] == (W, H)
+    assert info["fps"] == pytest.approx(10.0)
+    for k in range(5):
+        assert abs(grey_of(cam.capture().image) - level(k)) <= JPEG_DN
+    with pytest.raises(NoFrameError):
+        cam.capture()
+
+
+def test_bad_arguments(open_camera) -> None:
+    with pytest.raises(ValueError, match="settle_frames"):
+        open_camera("x.avi", settle_frames=-1)
+    with pytest.raises(ValueError, match="timeout_s"):
+        open_camera("x.avi", timeout_s=0.0)
+
+
+# -- GenICam -------------------------------------------------------------------------------
+def test_genicam_without_harvesters_says_how_to_install(monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "harvesters", None)
+    monkeypatch.setitem(sys.modules, "harvesters.core", None)
+    with pytest.raises(ImportError, match=r"pip install -e \.\[genicam\]"):
+        GenICamCamera("producer.cti", name="gige", clock=WallClock())
+
+
+class _Node:
+    def __init__(self, value: object = None) -> None:
+        self.value = value
+
+
+class _FakeBuffer:
+    def __init__(self, acquirer: _FakeAcquirer, value: int) -> None:
+        self.acquirer = acquirer
+        data = np.full(acquirer.height * acquirer.width, value, np.uint8)
+        component = types.SimpleNamespace(width=acquirer.width, height=acquirer.height, data=data)
+        self.payload = types.SimpleNamespace(components=[component])
+
+    def queue(self) -> None:
+        self.acquirer.queued += 1
+
+    def __enter__(self) -> _FakeBuffer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.queue()
+
+
+class _FakeAcquirer:
+    """A triggered camera: each TriggerSoftware exposes one frame of ``scene``."""
+
+    width, height = 8, 6
+
+    def __init__(self, stale: int) -> None:
+        self.scene = 50
+        self.queued = 0
+        self.started = False
+        self.destroyed = False
+        self.pending = [_FakeBuffer(self, 1) for _ in range(stale)]
+        trigger = types.SimpleNamespace(execute=self._expose)
+        self.remote_device = types.SimpleNamespace(
+            node_map=types.SimpleNamespace(
+                Width=_Node(self.width),
+                Height=_Node(self.height),
+                TriggerSelector=_Node(),
+                TriggerMode=_Node(),
+                TriggerSource=_Node(),
+                TriggerSoftware=trigger,
+            )
+        )
+
+    def _expose(self) -> None:
+        self.pending.append(_FakeBuffer(self, self.scene))
+
+    def try_fetch(self, *, timeout: float) -> _FakeBuffer | None:
+        assert timeout > 0, "harvesters waits for ever on a timeout of 0"
+        return self.pending.pop(0) if self.pending else None
+
+    def start(self) -> None:
+        self.started = True
+
+    def stop(self) -> None:
+        self.started = False
+
+    def destroy(self) -> None:
+        self.destroyed = True
+
+
+def _fake_harvesters(monkeypatch, acquirer: _FakeAcquirer) -> dict[str, object]:
+    seen: dict[str, object] = {}
+
+    class Harvester:
+        def add_file(self, path: str) -> None:
+            seen["producer"] = path
+
+        def update(self) -> None:
+            pass
+
+        def create(self, key: object) -> _FakeAcquirer:
+            seen["key"] = key
+            return acquirer
+
+        def reset(self) -> None:
+            seen["reset"] = True
+
+    core = types.ModuleType("harvesters.core")
+    core.Harvester = Harvester
+    package = types.ModuleType("harvesters")
+    package.core = core
+    monkeypatch.setitem(sys.modules, "harvesters", package)
+    monkeypatch.setitem(sys.modules, "harvesters.core", core)
+    return seen
+
+
+def test_genicam_triggers_an_exposure_after_the_call(monkeypatch) -> None:
+    acquirer = _FakeAcquirer(stale=3)
+    seen = _fake_harvesters(monkeypatch, acquirer)
+    cam = GenICamCamera("vendor.cti", name="gige", clock=WallClock(), serial="A1")
+    try:
+        assert seen["producer"] == "vendor.cti"
+        assert seen["key"] == {"serial_number": "A1"}
+        assert acquirer.started
+        assert acquirer.remote_device.node_map.TriggerSource.value == "Software"
+        assert cam.image_size == (8, 6)
+        acquirer.scene = 77
+        shot = cam.capture()
+        assert shot.image.shape == (6, 8)
+        assert np.all(shot.image == 77)  # not one of the three frames exposed before
+        assert acquirer.queued == 4  # the stale buffers and the used one went back
+    finally:
+        cam.close()
+        cam.close()
+    assert acquirer.destroyed
+    assert seen["reset"]
+
+
+def test_genicam_without_a_frame_raises_no_frame(monkeypatch) -> None:
+    acquirer = _FakeAcquirer(stale=0)
+    acquirer.remote_device.node_map.TriggerSoftware.execute = lambda: None  # never exposes
+    _fake_harvesters(monkeypatch, acquirer)
+    cam = GenICamCamera("vendor.cti", name="gige", clock=WallClock(), timeout_s=0.2)
+    try:
+        with pytest.raises(NoFrameError, match=r"gige: no frame within 0\.2 s"):
+            cam.capture()
+    finally:
+        cam.close()

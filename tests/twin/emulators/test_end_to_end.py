@@ -1,0 +1,276 @@
+"""The campaign over the devices' real protocols: ``twin emulate`` plays the hardware, the
+drivers talk to it, and the results agree with the twin's own run of the same seed.
+
+Also: the drivers' rig keeps the interface's promises (``check_rig``) against the
+emulators; Ctrl-C during a drive stops every robot and keeps the log; a killed run's log
+reads back and the watchdog stops the robot it left driving.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from twin.drivers.build import build_rig
+from twin.drivers.rig_file import load_rig_file
+from twin.emulators.emulation import start_emulation, to_toml
+from twin.emulators.geocom import Fault
+from twin.hal.conformance import check_rig
+from twin.hardware_run import run_on_rig
+from twin.record import read_log
+from twin.runner import run_scenario
+from twin.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+SCALE = 30.0
+"""Rig seconds per wall second in these tests: a drive of 3 s takes 0.1 s."""
+FPS = 100.0
+SEED = 11
+
+
+def _wait_for(condition, timeout: float, what: str) -> None:
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.01)
+
+
+def _twin(*args: str) -> list[str]:
+    return [sys.executable, "-m", "twin.cli", *args]
+
+
+def test_the_campaign_over_the_protocols_agrees_with_the_twin(tmp_path):
+    rig_path = tmp_path / "rig.toml"
+    emulate = subprocess.Popen(
+        _twin(
+            "emulate",
+            str(SMOKE),
+            "--seed",
+            str(SEED),
+            "--time-scale",
+            str(SCALE),
+            "--fps",
+            str(FPS),
+            "--rig-out",
+            str(rig_path),
+        ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        cwd=ROOT,
+    )
+    try:
+        _wait_for(rig_path.exists, 60.0, "twin emulate's rig file")
+        over = run_on_rig(SMOKE, rig_path, tmp_path / "rig-run", report=False)
+    finally:
+        emulate.send_signal(signal.SIGINT)
+        out, _ = emulate.communicate(timeout=30)
+    assert emulate.returncode == 0, out.decode()
+    assert b"emulators stopped" in out
+    twin = run_scenario(SMOKE, tmp_path / "twin-run", fidelity="geometric", seed=SEED, report=False)
+
+    assert over["fidelity"] == "hardware"
+    cams = [(c["camera"], c["visit"]) for c in over["calibrations"]]
+    assert cams == [(c["camera"], c["visit"]) for c in twin["calibrations"]] == [("cam1", 1)]
+    a, b = over["calibrations"][0], twin["calibrations"][0]
+    assert a["points"] == b["points"]
+    # The emulated world's truth reached the run: its errors are against the truth.
+    assert a["truth"]["position_mm"] == pytest.approx(b["truth"]["position_mm"], abs=1e-6)
+    # Two independent runs of the same camera: their positions differ by their predicted
+    # standard deviations (4 sigma per axis), and so do their errors against the truth.
+    sa = 1e3 * np.array([a["std"][k] for k in "xyz"])
+    sb = 1e3 * np.array([b["std"][k] for k in "xyz"])
+    both = np.hypot(sa, sb)
+    diff = np.subtract(a["parameters"]["position_mm"], b["parameters"]["position_mm"])
+    assert np.all(np.abs(diff) < 4 * both), (diff, both)
+    error_a, error_b = a["truth"]["position_error_mm"], b["truth"]["position_error_mm"]
+    assert abs(error_a - error_b) < 4 * np.linalg.norm(both)
+    assert abs(a["sigma_px"] - b["sigma_px"]) < 0.5 * b["sigma_px"]
+    # Every reading went through the drivers and is in the log, with what each device said.
+    log = read_log(tmp_path / "rig-run" / "log.mcap")
+    assert log.complete
+    devices = {m.data["device"]: m.data for m in log.messages if m.topic == "/rig/device"}
+    assert devices["total_station"]["name"] == "TS16 R500"
+    assert devices["child1"]["subtype"] == "p3dx"
+    assert devices["cam1"]["resolution"] == [320, 240]
+
+
+@pytest.fixture
+def emulation():
+    em = start_emulation(SMOKE, time_scale=SCALE, camera_fps=FPS, seed=SEED)
+    try:
+        yield em
+    finally:
+        em.close()
+
+
+def test_the_drivers_rig_keeps_the_interface_against_the_emulators(emulation, tmp_path):
+    rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    sc = load_scenario(SMOKE)
+    devices = build_rig(load_rig_file(rig_path), sc)
+    sim = emulation.sim
+    with emulation.lock:
+        position, rotation = sim.world.instrument_pose(sim.rig.parent.name)
+        cubes = np.vstack([sim.world.marker_points(c)[0] for c in sim.rig.children])
+    prisms = (cubes - position) @ rotation
+    try:
+        report = check_rig(devices.rig, prisms_level=prisms, cameras=["cam1"], close=False)
+    finally:
+        devices.close()
+    # Every prism in the parent's sight was locked through GeoCOM and landed on its prism;
+    # every base drove twice over ARCOS; each child's LEDs were seen over MJPEG.
+    assert report.shots == 6
+    assert report.drives == 6
+    assert report.observations == 2
+    assert report.leds_found == 8
+    assert report.images == 1
+
+
+def test_the_rig_file_written_is_toml_that_reads_back(emulation, tmp_path):
+    import tomllib
+
+    data = emulation.rig_file("truth.json")
+    assert tomllib.loads(to_toml(data)) == json.loads(json.dumps(data))
+    rig = load_rig_file(emulation.write_rig_file(tmp_path / "rig.toml"))
+    assert rig.time_scale == SCALE
+    assert rig.emulator is not None
+    truth = json.loads((tmp_path / rig.emulator.truth).read_text())
+    assert set(truth["cameras"]) == {"cam1"}
+
+
+def _start_run(rig_path: Path, out: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        _twin("run", str(SMOKE), "--rig", str(rig_path), "--out", str(out), "--no-report"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        cwd=ROOT,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+
+
+def _moving(emulation) -> list[str]:
+    return [name for name, robot in emulation.robots.items() if robot.body.moving]
+
+
+def _data_stop_drive(emulation) -> bool:
+    """A child drives (the campaign is past its start and taking data)."""
+    return any(n != "parent" for n in _moving(emulation))
+
+
+def test_ctrl_c_during_a_drive_stops_every_robot_and_keeps_the_log(emulation, tmp_path):
+    rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    run = _start_run(rig_path, tmp_path / "run")
+    try:
+        _wait_for(lambda: _data_stop_drive(emulation) or run.poll() is not None, 60, "a drive")
+        assert run.poll() is None, run.stdout.read().decode()
+        run.send_signal(signal.SIGINT)
+        out, _ = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    assert run.returncode == 130, out.decode()
+    assert b"interrupted" in out
+    # Stopped by the driver (a stop, then CLOSE), not left to the watchdog.
+    _wait_for(lambda: not _moving(emulation), 5.0, "the robots to stop")
+    for name, robot in emulation.robots.items():
+        assert not robot.session_open, name
+        assert robot.watchdog_trips == 0, name
+    log = read_log(tmp_path / "run" / "log.mcap")
+    assert log.complete  # closed properly on the way out
+    topics = {m.topic for m in log.messages}
+    assert {"/run/meta", "/total_station/inclination", "/campaign/stage"} <= topics
+
+
+def test_a_killed_runs_log_reads_back_and_the_watchdog_stops_the_robot(emulation, tmp_path):
+    rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    run = _start_run(rig_path, tmp_path / "run")
+    try:
+        _wait_for(lambda: _data_stop_drive(emulation) or run.poll() is not None, 60, "a drive")
+        assert run.poll() is None, run.stdout.read().decode()
+        driving = _moving(emulation)
+        run.send_signal(signal.SIGKILL)
+        run.wait(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    # Nobody said stop: the watchdog (2 rig seconds without a command) stops the robot.
+    _wait_for(lambda: not _moving(emulation), 5.0, "the watchdog to stop the robots")
+    assert sum(emulation.robots[n].watchdog_trips for n in driving) >= 1
+    log = read_log(tmp_path / "run" / "log.mcap")
+    assert not log.complete
+    # What was handed to the system before the kill (every 8 records) reads back.
+    assert len(log.messages) >= 8
+    assert log.messages[0].topic == "/run/meta"
+
+
+def _drop_child1(em) -> None:
+    em.robots["child1"].faults.drop_link = True
+
+
+def _silent_instrument(em) -> None:
+    em.total_station.faults.set(Fault.SILENT)
+
+
+def _unknown_code(em) -> None:
+    em.total_station.faults.set(Fault.CODE, code=4242, times=2)
+
+
+@pytest.mark.parametrize(
+    ("inject", "expected", "calibrated"),
+    [
+        (_drop_child1, {"device_lost": 1, "campaign_aborted": 1}, False),
+        (_silent_instrument, {"device_lost": 1, "campaign_aborted": 1}, False),
+        (_unknown_code, {"instrument_fault": 2}, True),
+    ],
+    ids=["robot-unplugged", "instrument-silent", "unknown-return-code"],
+)
+def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
+    emulation, tmp_path, inject, expected, calibrated
+):
+    rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    injected: list[float] = []
+
+    def fault_when_taking_data() -> None:
+        end = time.monotonic() + 60
+        while not _data_stop_drive(emulation) and time.monotonic() < end:
+            time.sleep(0.005)
+        time.sleep(0.5)  # a few data points in
+        inject(emulation)
+        injected.append(time.monotonic())
+
+    thread = threading.Thread(target=fault_when_taking_data, daemon=True)
+    thread.start()
+    results = run_on_rig(SMOKE, rig_path, tmp_path / "run", report=False)
+    thread.join(timeout=5)
+    assert injected, "the fault was not injected"
+    for kind, count in expected.items():
+        assert results["failures"].get(kind, 0) == count, results["failures"]
+    assert bool(results["calibrations"]) == calibrated
+    assert results["complete"]
+    log = read_log(tmp_path / "run" / "log.mcap")
+    assert log.complete
+    # What was measured before the fault is in the log: the data points taken so far.
+    points = [m for m in log.messages if m.topic == "/campaign/point"]
+    assert points
+    if kind := next((k for k in expected if k == "device_lost"), None):
+        lost = [m.data for m in log.messages if m.topic == "/campaign/failure"]
+        assert any(f["kind"] == kind for f in lost)
+    if inject is _unknown_code:
+        faults = [
+            m.data["message"]
+            for m in log.messages
+            if m.topic == "/campaign/failure" and m.data["kind"] == "instrument_fault"
+        ]
+        assert all("4242" in f and "unknown" in f for f in faults), faults

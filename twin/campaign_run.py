@@ -1,0 +1,121 @@
+"""Run the campaign on a rig, log every reading, and write what the run gives: the part of
+a run that does not depend on the backend (the twin's :mod:`twin.runner`, real devices'
+:mod:`twin.hardware_run`).
+
+- ``DIR/log.mcap`` (every reading, as it arrives), ``DIR/results.json``, ``DIR/cameras/``
+  (JSON, OpenCV YAML, ROS camera_info per calibration), ``DIR/figures/`` and
+  ``DIR/report.md``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from calib.io.camera_files import camera_from_dict, save_camera
+from twin.campaign import Campaign, Progress
+from twin.campaign.log_results import META, SUMMARY, results_from_log
+from twin.campaign.strategy import Strategy
+from twin.hal.recording import recorded
+from twin.hal.rig import Rig
+from twin.outputs import claim_folder, write_text_atomic
+from twin.record import McapRecorder, read_log
+from twin.report import write_report
+from twin.scenario import Scenario
+
+RigOpener = Callable[[McapRecorder], tuple[Rig, Callable[[], None], dict[str, float]]]
+"""Given the run's log, opens the devices; returns them, what closes them, and the
+backend's timings by activity (filled as it runs)."""
+
+
+def run_campaign(
+    sc: Scenario,
+    out_dir: str | Path,
+    arguments: dict[str, Any],
+    meta: dict[str, Any],
+    open_rig: RigOpener,
+    strategy: Strategy,
+    progress: Callable[[Progress], None] | None,
+    report: bool,
+    overwrite: bool,
+) -> dict[str, Any]:
+    """Run the campaign on the rig ``open_rig`` gives, log it, and write its outputs.
+
+    Args:
+        sc: the scenario. out_dir: the run's folder (see :func:`run_scenario`).
+        arguments: what the folder is claimed for (:func:`twin.outputs.claim_folder`).
+        meta: the run's description beside the scenario and strategy (``fidelity``,
+            ``seed``...), the log's first record.
+        open_rig: given the log, opens the devices and returns them, what closes them, and
+            the backend's timings (filled as it runs). The devices are closed (robots
+            stopped) however the campaign ends, Ctrl-C included; the log keeps what came.
+        strategy: the campaign's strategy. progress, report, overwrite: as
+            :func:`run_scenario`.
+    """
+    folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
+    out = folder.path
+    log_path = out / "log.mcap"
+    t0 = time.perf_counter()
+    with McapRecorder(log_path) as log:
+        log.record(
+            META,
+            {
+                "scenario": sc.name,
+                "scenario_file": sc.source,
+                **meta,
+                "strategy": strategy.name,
+                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            },
+            0.0,
+        )
+        devices, close, backend_timings = open_rig(log)
+        try:
+            rig = recorded(devices, log)
+            Campaign(rig, sc, log, progress, strategy).run()
+            wall = time.perf_counter() - t0
+            timings = dict(backend_timings)
+            if "observe" in timings:
+                timings["detection"] = max(timings.pop("observe") - timings.get("render", 0.0), 0.0)
+            timings["other"] = max(wall - sum(timings.values()), 0.0)
+            log.record(
+                SUMMARY,
+                {"wall_time_s": wall, "timings_s": timings},
+                rig.clock.now(),
+            )
+        finally:
+            close()
+    messages = read_log(log_path).messages
+    results = results_from_log(messages, sc.campaign.pixel_size_mm)
+    write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
+    write_cameras(results, messages, out / "cameras")
+    if report:
+        write_report(sc, results, out)
+    folder.finished(calibrations=len(results["calibrations"]))
+    return results
+
+
+RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
+"""What a run writes in its folder (and clears there with ``overwrite``)."""
+
+
+def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:
+    """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
+    ``.camera_info.yaml`` (ROS) in ``folder``."""
+    from twin.campaign.records import CALIBRATION
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for m in messages:
+        if m.topic != CALIBRATION:
+            continue
+        camera = camera_from_dict(m.data["camera_model"], "calibration")
+        stem = f"{m.data['camera']}_visit{m.data['visit']}"
+        for suffix in (".json", ".yaml", ".camera_info.yaml"):
+            path = folder / f"{stem}{suffix}"
+            save_camera(camera, path, name=m.data["camera"])
+            written.append(path)
+    return written

@@ -1,0 +1,107 @@
+"""``twin emulate``: the twin plays the hardware over the devices' real protocols."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from twin.cli import arguments
+from twin.cli.scene import load_or_report
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``emulate`` subcommand."""
+    p = sub.add_parser(
+        "emulate",
+        help="serve a scenario's devices over their real protocols, for the drivers",
+        description=(
+            "Build the scenario's world and serve its devices as the hardware is reached: the "
+            "total station as a Leica GeoCOM instrument on a pseudo-terminal, each Pioneer "
+            "speaking ARCOS on a localhost TCP port (or a pseudo-terminal), each camera as an "
+            "MJPEG stream over HTTP on localhost. Writes a rig file that points at them (and "
+            "the world's truth beside it), then runs until stopped (Ctrl-C, SIGTERM). Then: "
+            "twin devices RIG.toml; twin run SCENARIO --rig RIG.toml."
+        ),
+    )
+    p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
+    p.add_argument(
+        "--fidelity",
+        choices=("geometric", "render"),
+        default="geometric",
+        help="geometric: LEDs drawn as spots at their projected places (default); render: "
+        "rendered camera images",
+    )
+    p.add_argument("--seed", type=arguments.seed, help="root seed (default: the scenario's)")
+    p.add_argument(
+        "--time-scale",
+        type=arguments.positive_float,
+        default=10.0,
+        metavar="X",
+        help="emulated seconds per wall second; the rig file tells the drivers (default: 10)",
+    )
+    p.add_argument(
+        "--links",
+        choices=("tcp", "pty"),
+        default="tcp",
+        help="the robots' links: localhost TCP ports (default) or pseudo-terminals",
+    )
+    p.add_argument(
+        "--fps", type=arguments.positive_float, default=30.0, help="camera frames per second"
+    )
+    p.add_argument(
+        "--duration",
+        type=arguments.positive_float,
+        metavar="S",
+        help="stop after S wall seconds (default: run until stopped)",
+    )
+    p.add_argument(
+        "--rig-out", type=Path, required=True, metavar="RIG.toml", help="rig file to write"
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until stopped; exit code 0, 2 for bad input."""
+    console = Console(highlight=False, soft_wrap=True)
+    sc = load_or_report(args.scenario, console)
+    if sc is None:
+        return 2
+    from twin.emulators.emulation import start_emulation
+
+    try:
+        emulation = start_emulation(
+            sc,
+            fidelity=args.fidelity,
+            seed=args.seed,
+            time_scale=args.time_scale,
+            links=args.links,
+            camera_fps=args.fps,
+        )
+    except ValueError as exc:
+        console.print(f"[red]error:[/red] {exc}", highlight=False)
+        return 2
+    with emulation:
+        rig = emulation.write_rig_file(args.rig_out)
+        table = Table(title=f"{sc.name}: emulated devices ({args.fidelity}, x{args.time_scale:g})")
+        table.add_column("device")
+        table.add_column("protocol")
+        table.add_column("address")
+        table.add_row("total_station", "GeoCOM", emulation.total_station.address)
+        for name, robot in emulation.robots.items():
+            table.add_row(name, "ARCOS", robot.address)
+        for name, server in emulation.cameras.items():
+            table.add_row(name, "MJPEG over HTTP", server.url)
+        console.print(table)
+        console.print(f"rig file: {rig}  (stop with Ctrl-C)")
+        start = time.monotonic()
+        try:
+            while args.duration is None or time.monotonic() - start < args.duration:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+    console.print("emulators stopped")
+    return 0

@@ -1,0 +1,70 @@
+"""``twin replay``: a run's results, camera files, figures and report again from its log."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+
+from twin.cli import arguments
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``replay`` subcommand."""
+    p = sub.add_parser(
+        "replay",
+        help="compute a run's results again from its log (twin or real hardware)",
+        description=(
+            "Read a run's log.mcap (whole, or cut short by a kill) and write results.json, "
+            "cameras/, figures/ and report.md again, as the run did. With --model opencv "
+            "each visit is calibrated again, from the same points, in OpenCV's model. Exit "
+            "code 0; 1 when the log holds no calibration; 2 for bad input."
+        ),
+    )
+    p.add_argument("log", type=Path, help="the run's log.mcap")
+    p.add_argument(
+        "--out", type=Path, help="output folder, empty or new (default: beside the log, replay/)"
+    )
+    p.add_argument(
+        "--model",
+        choices=("tsai", "opencv"),
+        default="tsai",
+        help="tsai: the campaign's calibrations as logged (default); opencv: fitted again",
+    )
+    p.add_argument(
+        "--scenario",
+        type=Path,
+        help="scenario for the figures (default: the file the log names)",
+    )
+    p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
+    arguments.add_overwrite(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay; exit code 0, 1 without calibrations, 2 for bad input."""
+    from twin.cli.run import print_results
+    from twin.replay import replay_log
+    from twin.scenario import ScenarioError
+
+    console = Console(highlight=False, soft_wrap=True)
+    if not args.log.is_file():
+        console.print(f"[red]error:[/red] {args.log}: no such log file", highlight=False)
+        return 2
+    out = args.out or args.log.parent / "replay"
+    try:
+        results = replay_log(
+            args.log,
+            out,
+            model=args.model,
+            scenario=args.scenario,
+            report=not args.no_report,
+            overwrite=args.overwrite,
+        )
+    except (ValueError, ScenarioError) as exc:
+        console.print(f"[red]error:[/red] {exc}", highlight=False)
+        return 2
+    print_results(results, console)
+    console.print(f"written in {out}")
+    return 0 if results["calibrations"] else 1

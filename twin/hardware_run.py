@@ -1,0 +1,107 @@
+"""Run the calibration campaign of a scenario on real devices (or on emulated ones).
+
+The devices come from a rig file (:mod:`twin.drivers.rig_file`); the scenario still gives
+the map, the cameras' nominal poses, the route, the visits and the instrument's noise. The
+run is logged and written as a twin run is (:mod:`twin.campaign_run`). A run against
+``twin emulate`` also records the emulated world's cameras as the truth, so its results
+carry errors against the truth as a twin run's do.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from twin.campaign import Progress
+from twin.campaign.strategies import strategy_for
+from twin.campaign_run import run_campaign
+from twin.drivers.build import build_rig
+from twin.drivers.rig_file import RigFile, RigFileError, load_rig_file
+from twin.hal.rig import Rig
+from twin.record import McapRecorder
+from twin.scenario import Scenario, load_scenario
+from twin.scenario.errors import ScenarioIssue
+from twin.truth import TRUTH_CAMERA
+
+
+def run_on_rig(
+    scenario: Scenario | str | Path,
+    rig_file: RigFile | str | Path,
+    out_dir: str | Path,
+    *,
+    progress: Callable[[Progress], None] | None = None,
+    report: bool = True,
+    strategy: str | None = None,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Run the campaign of ``scenario`` on the devices of ``rig_file``.
+
+    Args:
+        scenario: a scenario or its file. rig_file: a rig file or its path.
+        out_dir, progress, report, strategy, overwrite: as :func:`twin.runner.run_scenario`.
+
+    Returns:
+        The results (also in ``results.json``).
+
+    Raises:
+        twin.drivers.rig_file.RigFileError: the rig file is bad or lacks a device the
+            scenario needs (nothing is written).
+        twin.drivers.build.DeviceConnectError: a device could not be opened (the log so far
+            is kept).
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    rig = rig_file if isinstance(rig_file, RigFile) else load_rig_file(rig_file)
+    chosen = strategy_for(sc, strategy)
+    truth = emulated_truth(rig)
+    arguments = {
+        "scenario": sc.source or sc.name,
+        "rig": rig.source or rig.name,
+        "strategy": chosen.name,
+    }
+
+    def open_rig(log: McapRecorder) -> tuple[Rig, Callable[[], None], dict[str, float]]:
+        devices = build_rig(rig, sc)
+        for name, identity in devices.identities.items():
+            log.record("/rig/device", {"device": name, **_plain(identity)}, 0.0)
+        for name, camera in truth.items():
+            log.record(TRUTH_CAMERA, {"name": name, "camera": camera}, 0.0)
+        return devices.rig, devices.close, devices.rig.timings
+
+    meta = {"fidelity": "hardware", "rig": rig.source or rig.name, "seed": sc.seed}
+    return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
+
+
+def emulated_truth(rig: RigFile) -> dict[str, dict[str, Any]]:
+    """The cameras' true models in W that ``twin emulate`` wrote beside its rig file, by
+    name; empty for real hardware.
+
+    Raises:
+        RigFileError: the truth file named by the rig file cannot be read.
+    """
+    if rig.emulator is None:
+        return {}
+    path = Path(rig.emulator.truth)
+    if not path.is_absolute() and rig.source is not None:
+        path = Path(rig.source).parent / path
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return {str(k): dict(v) for k, v in data["cameras"].items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        issue = ScenarioIssue("emulator.truth", str(exc), str(path), "the truth file it wrote")
+        raise RigFileError(rig.source or "<rig>", [issue]) from None
+
+
+def _plain(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` as a log holds them: numbers, strings, bools and lists of them; anything
+    else as its text."""
+
+    def plain(v: Any) -> Any:
+        if v is None or isinstance(v, bool | int | float | str):
+            return v
+        if isinstance(v, list | tuple):
+            return [plain(x) for x in v]
+        return str(v)
+
+    return {str(k): plain(v) for k, v in values.items()}

@@ -1,0 +1,125 @@
+"""A run again from its log: results, camera files, figures and report, from the twin or
+from real hardware, optionally with each visit calibrated again in another camera model.
+
+Everything a run gives is computed from its log (:mod:`twin.campaign.log_results`), so a
+log copied from the robots' computer, or the log of a run that was killed, gives the same
+outputs here. With ``model="opencv"`` each calibration is fitted again, from the same LED
+points and pixels, in OpenCV's model (fx, fy, cx, cy, k1, k2 and the pose).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+from calib import calibrate_opencv, calibrate_tsai
+from calib.io.camera_files import camera_from_dict, camera_to_dict
+from twin.campaign.log_results import META, point_arrays, results_from_log
+from twin.campaign.records import CALIBRATION, POINT
+from twin.campaign_run import write_cameras
+from twin.outputs import claim_folder, write_text_atomic
+from twin.record import read_log
+from twin.record.mcap_log import LogMessage
+from twin.report import write_report
+from twin.scenario import Scenario, load_scenario
+
+MODELS = ("tsai", "opencv")
+
+REPLAY_OUTPUTS = ("results.json", "cameras", "figures", "report.md")
+"""What a replay writes in its folder."""
+
+
+def replay_log(
+    log: str | Path,
+    out_dir: str | Path,
+    *,
+    model: str = "tsai",
+    scenario: Scenario | str | Path | None = None,
+    report: bool = True,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Compute a run's results again from its log and write them in ``out_dir``.
+
+    Args:
+        log: the run's ``log.mcap`` (whole, or cut short by a kill).
+        out_dir: where ``results.json``, ``cameras/``, ``figures/`` and ``report.md`` go.
+        model: ``tsai`` (the campaign's own calibrations, as logged) or ``opencv`` (each
+            visit's points fitted again in OpenCV's model).
+        scenario: the scenario for the report's figures (default: the file the log names).
+        report: write the figures and ``report.md`` (needs the scenario).
+        overwrite: replace what an earlier replay wrote in ``out_dir``.
+
+    Returns:
+        The results (also in ``results.json``).
+
+    Raises:
+        ValueError: an unknown model, or a log that holds no run.
+        twin.scenario.ScenarioError: the scenario cannot be read.
+    """
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    contents = read_log(log)
+    messages = list(contents.messages)
+    meta = next((m.data for m in messages if m.topic == META), None)
+    if meta is None:
+        raise ValueError(f"{log}: no run in this log (no {META} record)")
+    sc = scenario_of(meta, scenario, log) if (report or scenario is not None) else None
+    if model != "tsai":
+        messages = refit(messages, model)
+    arguments = {"log": str(log), "model": model}
+    folder = claim_folder(Path(out_dir), "replay", REPLAY_OUTPUTS, arguments, overwrite=overwrite)
+    out = folder.path
+    pixel_size = sc.campaign.pixel_size_mm if sc is not None else 0.015
+    results = results_from_log(messages, pixel_size)
+    results["replayed_from"] = str(log)
+    results["model"] = model
+    write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
+    write_cameras(results, messages, out / "cameras")
+    if report and sc is not None:
+        write_report(sc, results, out)
+    folder.finished(calibrations=len(results["calibrations"]))
+    return results
+
+
+def scenario_of(
+    meta: dict[str, Any], scenario: Scenario | str | Path | None, log: str | Path
+) -> Scenario:
+    """The scenario given, or the one the log's run was made from."""
+    if isinstance(scenario, Scenario):
+        return scenario
+    if scenario is not None:
+        return load_scenario(scenario)
+    source = meta.get("scenario_file")
+    if not source:
+        raise ValueError(f"{log}: the log names no scenario file; give one")
+    return load_scenario(source)
+
+
+def refit(messages: list[LogMessage], model: str) -> list[LogMessage]:
+    """``messages`` with every calibration fitted again in ``model`` from its visit's
+    points (the first ``points`` logged for that camera and visit, as the campaign used)."""
+    fit = calibrate_opencv if model == "opencv" else calibrate_tsai
+    points = [m.data for m in messages if m.topic == POINT and m.data["dataset"] == "visit"]
+    out = []
+    for m in messages:
+        if m.topic != CALIBRATION:
+            out.append(m)
+            continue
+        rec = m.data
+        mine = [p for p in points if p["camera"] == rec["camera"] and p["visit"] == rec["visit"]]
+
+        pts, pix, _ = point_arrays(mine)
+        pts, pix = pts[: rec["points"]], pix[: rec["points"]]
+        size = camera_from_dict(rec["camera_model"], "calibration").image_size
+        result = fit(pts, pix, size)
+        data = dict(rec)
+        data.update(
+            camera_model=camera_to_dict(result.camera),
+            parameters=dict(result.parameters),
+            std=dict(result.std_by_name),
+            sigma_px=result.sigma_px,
+        )
+        out.append(dataclasses.replace(m, data=data))
+    return out
