@@ -25,6 +25,10 @@ from twin.scenario import Scenario, load_scenario
 from twin.scenario.errors import ScenarioIssue
 from twin.truth import TRUTH_CAMERA
 
+DEVICE = "/rig/device"
+"""Topic of what each device said about itself when it was opened (name, serial number,
+battery, resolution...), one record per device at the start of a run."""
+
 
 def run_on_rig(
     scenario: Scenario | str | Path,
@@ -63,10 +67,14 @@ def run_on_rig(
 
     def open_rig(log: McapRecorder) -> tuple[Rig, Callable[[], None], dict[str, float]]:
         devices = build_rig(rig, sc)
-        for name, identity in devices.identities.items():
-            log.record("/rig/device", {"device": name, **_plain(identity)}, 0.0)
-        for name, camera in truth.items():
-            log.record(TRUTH_CAMERA, {"name": name, "camera": camera}, 0.0)
+        try:
+            for name, identity in devices.identities.items():
+                log.record(DEVICE, {"device": name, **_plain(identity)}, 0.0)
+            for name, camera in truth.items():
+                log.record(TRUTH_CAMERA, {"name": name, "camera": camera}, 0.0)
+        except BaseException:
+            devices.close()
+            raise
         return devices.rig, devices.close, devices.rig.timings
 
     meta = {"fidelity": "hardware", "rig": rig.source or rig.name, "seed": sc.seed}

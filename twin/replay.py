@@ -9,6 +9,7 @@ points and pixels, in OpenCV's model (fx, fy, cx, cy, k1, k2 and the pose).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from pathlib import Path
@@ -23,7 +24,7 @@ from twin.outputs import claim_folder, write_text_atomic
 from twin.record import read_log
 from twin.record.mcap_log import LogMessage
 from twin.report import write_report
-from twin.scenario import Scenario, load_scenario
+from twin.scenario import Scenario, ScenarioError, load_scenario
 
 MODELS = ("tsai", "opencv")
 
@@ -66,6 +67,10 @@ def replay_log(
     if meta is None:
         raise ValueError(f"{log}: no run in this log (no {META} record)")
     sc = scenario_of(meta, scenario, log) if (report or scenario is not None) else None
+    if sc is None and meta.get("scenario_file"):
+        # The run's own pixel pitch (kappa1 in 1/mm^2), where its scenario can still be read.
+        with contextlib.suppress(ValueError, ScenarioError, OSError):
+            sc = scenario_of(meta, None, log)
     if model != "tsai":
         messages = refit(messages, model)
     arguments = {"log": str(log), "model": model}

@@ -37,6 +37,16 @@ def test_the_replay_of_a_log_gives_the_runs_results(run, tmp_path):
     assert names == sorted(p.name for p in (out / "cameras").iterdir())
 
 
+def test_a_replay_without_report_keeps_the_runs_pixel_size(tmp_path):
+    scenario = tmp_path / "fine_pixels.toml"
+    scenario.write_text(SMOKE.read_text() + "\n[campaign]\npixel_size_mm = 0.005\n")
+    results = run_scenario(scenario, tmp_path / "run", fidelity="geometric", report=False, seed=5)
+    assert results["pixel_size_mm"] == 0.005
+    again = replay_log(tmp_path / "run" / "log.mcap", tmp_path / "replay", report=False)
+    assert again["pixel_size_mm"] == 0.005
+    assert again["calibrations"] == results["calibrations"]
+
+
 def test_an_opencv_fit_of_the_same_points_finds_the_same_camera(run, tmp_path):
     out, results = run
     again = replay_log(out / "log.mcap", tmp_path / "cv", model="opencv", report=False)

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 
@@ -47,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
     def show(r: DeviceReport) -> None:
         facts = "; ".join(f"{k} {v}" for k, v in r.facts.items())
         console.print(f"{'ok ' if r.ok else 'NO '} {r.kind} {r.device}: {facts}", markup=False)
-        table.add_row(r.device, r.kind, r.where, ("" if r.ok else "[red]failed[/red] ") + facts)
+        answer = ("" if r.ok else "[red]failed[/red] ") + escape(facts)
+        table.add_row(escape(r.device), r.kind, escape(r.where), answer)
 
     reports = probe_rig(rig, show, blink=not args.no_blink)
     console.print(table)

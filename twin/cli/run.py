@@ -8,6 +8,7 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.live import Live
+from rich.markup import escape
 from rich.table import Table
 
 from twin.campaign.strategies import strategy_for
@@ -27,8 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "twin, or with --rig on real devices (or their emulators). Writes "
             "DIR/log.mcap (every reading, as it arrives), DIR/results.json, DIR/cameras/, "
             "DIR/figures/ and DIR/report.md. Exit code 0; 1 when no camera was calibrated; 2 "
-            "for bad input or a device that cannot be opened (nothing written); 130 when "
-            "interrupted (Ctrl-C, SIGTERM: every robot is stopped, the log so far is kept)."
+            "for bad input (nothing written) or a device that cannot be opened (the log of "
+            "the attempt is kept); 130 when interrupted (Ctrl-C, SIGTERM: every robot is "
+            "stopped, the log so far is kept)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
@@ -175,7 +177,7 @@ def _run_on_rig(
     except RigFileError as exc:
         console.print(str(exc), markup=False)
     except (DeviceConnectError, ImportError) as exc:
-        console.print(f"[red]error:[/red] {exc}", highlight=False)
+        console.print(f"[red]error:[/red] {escape(str(exc))}", highlight=False)
     return None
 
 

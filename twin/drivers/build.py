@@ -72,39 +72,61 @@ def build_rig(rig_file: RigFile, scenario: Scenario) -> DriverRig:
     opened: list[Closing] = []
     identities: dict[str, dict[str, Any]] = {}
 
-    def open_device(label: str, where: str, make: Callable[[], Any]) -> Any:
+    def open_device(label: str, where: str, make: Callable[[], Any], key: str | None = None) -> Any:
+        """``make()``, kept to be closed; with ``key``, its identity recorded under it."""
         try:
             device = make()
+            opened.append(device)
+            if key is not None:
+                identities[key] = identify(device)
         except ImportError:
-            close_all(opened)
             raise
         except Exception as exc:
-            close_all(opened)
             raise DeviceConnectError(f"{label} at {where}: {type(exc).__name__}: {exc}") from exc
-        opened.append(device)
         return device
 
+    try:
+        return _build(rig_file, scenario, clock, open_device, identities)
+    except BaseException:
+        close_all(opened)
+        raise
+
+
+def _build(
+    rig_file: RigFile,
+    scenario: Scenario,
+    clock: WallClock,
+    open_device: Callable[..., Any],
+    identities: dict[str, dict[str, Any]],
+) -> DriverRig:
+    """The devices of :func:`build_rig`, each opened through ``open_device``."""
     station = open_device(
         "total station",
         rig_file.total_station.port,
         lambda: open_total_station(rig_file.total_station, clock, scenario.noise),
+        "total_station",
     )
-    identities["total_station"] = identify(station)
     bases: dict[str, MobileBase] = {}
     leds: dict[str, MarkerLeds] = {}
     connections = []
     children = {c.name for c in scenario.robots.children}
     for robot in scenario.robots.all:
         device = rig_file.robot(robot.name)
+        label = f"robot {robot.name!r}"
         connection = open_device(
-            f"robot {robot.name!r}", device.port, lambda d=device: open_connection(d, clock)
+            label, device.port, lambda d=device: open_connection(d, clock), robot.name
         )
         connections.append(connection)
-        identities[robot.name] = identify(connection)
         start = (float(robot.start_xy[0]), float(robot.start_xy[1]), robot.start_yaw)
-        bases[robot.name] = open_base(connection, device, start)
+        bases[robot.name] = open_device(
+            label, device.port, lambda c=connection, d=device, s=start: open_base(c, d, s)
+        )
         if robot.name in children:
-            leds[robot.name] = open_leds(connection, device)
+            leds[robot.name] = open_device(
+                f"LEDs of {robot.name!r}",
+                device.port,
+                lambda c=connection, d=device: open_leds(c, d),
+            )
     cameras: dict[str, Camera] = {}
     sensors: dict[str, LedSensor] = {}
     led_line = [float(p[2]) for p in scenario.marker.leds]
@@ -114,8 +136,8 @@ def build_rig(rig_file: RigFile, scenario: Scenario) -> DriverRig:
             f"camera {cam.name!r}",
             str(device_cam.source),
             lambda d=device_cam: open_camera(d, clock),
+            cam.name,
         )
-        identities[cam.name] = identify(camera)
         cameras[cam.name] = camera
         sensors[cam.name] = ImageLedSensor(
             camera,

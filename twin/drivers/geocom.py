@@ -50,8 +50,11 @@ from twin.hal.errors import DeviceLostError
 from twin.hal.readings import TiltReading, TotalStationMeasurement
 from twin.instruments.errors import (
     DistanceMeasurementError,
+    InstrumentBusyError,
+    InstrumentError,
     InstrumentFaultError,
     InstrumentTimeoutError,
+    TiltOutOfRangeError,
 )
 from twin.instruments.polar import cartesian2polar
 from twin.instruments.tilt import check_tilt
@@ -59,6 +62,13 @@ from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
 LOST_AFTER_TIMEOUTS = 3
 """Requests in a row without any reply after which the instrument counts as lost."""
+
+_LINK_ERRORS: tuple[type[InstrumentError], ...] = (
+    InstrumentBusyError,
+    InstrumentTimeoutError,
+    InstrumentFaultError,
+)
+"""What a return code may become in any request (:data:`twin.hal.DOCUMENTED_ERRORS`)."""
 
 _T = TypeVar("_T")
 _REPLY_TRID = re.compile(r"^%R1P,\d+,(\d+)")
@@ -236,7 +246,11 @@ class GeoComTotalStation(TotalStation):
         _, horizontal, zenith = cartesian2polar(target)
         hz, v = geocom_from_polar(float(horizontal), float(zenith))
         self._request(
-            "AUT_MakePositioning", lambda: self._geocom.aut.turn_to(hz, v), None, safe=False
+            "AUT_MakePositioning",
+            lambda: self._geocom.aut.turn_to(hz, v),
+            None,
+            safe=False,
+            documented=(),
         )
 
     def measure(self) -> TotalStationMeasurement:
@@ -288,6 +302,7 @@ class GeoComTotalStation(TotalStation):
             lambda: self._geocom.tmc.get_angle_inclination(Inclination.MEASURE),
             _inclination,
             accept=ANGLE_WARNINGS,
+            documented=(TiltOutOfRangeError,),
         )
         roll, pitch = tilt_from_inclination(cross, length, hz)
         reading = TiltReading(timestamp=self._clock.now(), roll=roll, pitch=pitch)
@@ -313,11 +328,14 @@ class GeoComTotalStation(TotalStation):
         *,
         accept: frozenset[int] = frozenset(),
         safe: bool = True,
+        documented: tuple[type[InstrumentError], ...] | None = None,
     ) -> _T:
         """Send one GeoCOM request, check its reply, return ``parse(reply)``.
 
         ``accept``: non-zero return codes whose values are still valid (warnings). ``safe``:
-        the request may be sent again after a reply that could not be read.
+        the request may be sent again after a reply that could not be read. ``documented``:
+        the instrument's errors the calling method may raise beside busy, timeout and fault
+        (None: any); a return code that maps to another is an :class:`InstrumentFaultError`.
         """
         if self._closed:
             raise DeviceLostError(self.name, f"{request}: the port {self.port!r} is closed")
@@ -336,7 +354,11 @@ class GeoComTotalStation(TotalStation):
             if match is not None:
                 code = int(match[1]) or int(match[4])
                 if code != 0 and code not in accept:
-                    raise error_for_code(code, request, port=self.port)
+                    error = error_for_code(code, request, port=self.port)
+                    allowed = None if documented is None else (*_LINK_ERRORS, *documented)
+                    if allowed is not None and not isinstance(error, allowed):
+                        error = InstrumentFaultError(str(error), **error.details)
+                    raise error
                 if response.error not in DECODE_CODES:
                     try:
                         return None if parse is None else parse(response)  # type: ignore[return-value]

@@ -71,10 +71,13 @@ def probe_rig(
             report(r)
 
     def attempt(device: str, kind: str, where: str, make: Callable[[], Any]) -> Any:
+        handle = None
         try:
             handle = make()
             facts = identify(handle)
         except Exception as exc:
+            if handle is not None:
+                close_all([handle])
             note(
                 DeviceReport(device, kind, where, False, {"error": f"{type(exc).__name__}: {exc}"})
             )

@@ -5,8 +5,9 @@ robot's name, type and subtype, and after OPEN sends a standard SIP every ``sip_
 ENABLE switches the motors, VEL and RVEL set the velocities (ignored while the motors are
 disabled), E_STOP and STOP stop, DIGOUT sets the user outputs (some of which may light a
 child's LEDs in the world), PULSE only resets the watchdog, CLOSE stops the robot and ends
-the session. With no command for ``watchdog_s`` the robot stops, as ARCOS does; the next
-command resets the watchdog. A packet with a wrong checksum, one cut short and bytes
+the session. With no packet for ``watchdog_s`` the robot stops, as ARCOS does; the next
+packet (a PULSE too) revives it and it accelerates again to the speeds it was last told, as
+the manual says of the watchdog. A packet with a wrong checksum, one cut short and bytes
 between packets are dropped, and the session goes on.
 
 Time is the emulator's :class:`~twin.drivers.clock.WallClock` (rig seconds, with the same
@@ -133,6 +134,7 @@ class PioneerEmulator(Closing):
         self._enabled = False
         self._v = 0.0  # commanded, m/s
         self._w = 0.0  # commanded, rad/s
+        self._tripped = False  # the watchdog holds the robot until the next packet
         self._digout = 0
         self._last_command = 0.0
         self._last_advance: float | None = None
@@ -197,17 +199,17 @@ class PioneerEmulator(Closing):
     def _tick(self, now: float) -> None:
         """Watchdog, motion, one SIP."""
         f = self.faults
-        if self._open and now - self._last_command > self.watchdog_s:
+        if self._open and not self._tripped and now - self._last_command > self.watchdog_s:
             if self._v or self._w:
                 self.watchdog_trips += 1
-            self._v = self._w = 0.0
+            self._tripped = True
         if f.estop or f.stall:
             self._v = self._w = 0.0
             if self.body.moving:
                 self.body.halt()
         dt = 0.0 if self._last_advance is None else now - self._last_advance
         self._last_advance = now
-        if self._enabled and not f.estop and not f.stall:
+        if self._enabled and not self._tripped and not f.estop and not f.stall:
             self.body.advance(self._v, self._w, dt)
         else:
             self.body.advance(0.0, 0.0, dt)
@@ -264,6 +266,7 @@ class PioneerEmulator(Closing):
             self._handshake(number)
             return
         self._last_command = self.time.now()
+        self._tripped = False
         value = arg if isinstance(arg, int) else None
         if number == Command.PULSE:
             return
@@ -325,6 +328,7 @@ class PioneerEmulator(Closing):
     def _end_session(self) -> None:
         self._open = False
         self._enabled = False
+        self._tripped = False
         self._sync = 0
         self._v = self._w = 0.0
 

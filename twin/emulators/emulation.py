@@ -21,14 +21,16 @@ over the real protocols and still reports its errors against the truth.
 The emulated world may run faster than real time: ``time_scale`` rig seconds pass per wall
 second, and the drivers' timeouts and the robots' watchdog follow the rig file's scale.
 Scenario faults appear at the protocol level: a lost lock is the instrument's "no
-target", an unreachable goal an ARCOS stall.
+target", an unreachable goal an ARCOS stall, a hidden LED one the cameras show dark for
+the LED sequence.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,6 +41,9 @@ from calib.io.camera_files import camera_to_dict
 from twin.closing import Closing
 from twin.drivers.clock import WallClock
 from twin.emulators.links import Link, PtyLink, TcpLink
+from twin.hal.devices import MarkerLeds
+from twin.hal.readings import LedSwitch
+from twin.hal.wrappers import MarkerLedsWrapper
 from twin.outputs import write_text_atomic
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.limits import check_seed
@@ -53,6 +58,18 @@ EMULATOR_STREAM = 7
 """Spawn key of the emulators' own random streams (stopping errors, camera noise)."""
 
 LINKS = ("tcp", "pty")
+
+CAMERA_TIMEOUT_WALL = 5.0
+"""The cameras' timeout the rig file gives, wall seconds: their streams serve frames in wall
+time whatever the time scale (and the first rendered frame takes a fraction of a second),
+so their timeout in rig seconds is this many wall seconds at the emulation's scale."""
+
+LINK_TIMEOUT_WALL = 1.0
+"""Least wall time the rig file gives the robots' and the instrument's links to answer, s.
+Their timeouts are in rig seconds (2 s without a robot's packet, 10 s for an instrument's
+reply); at a time scale of 30 those are 67 and 333 ms of wall time, which a busy host (the
+emulators and the campaign share its cores, and a render holds the world for tens of
+milliseconds) can miss without any device being lost."""
 
 
 @dataclass
@@ -77,6 +94,7 @@ class Emulation(Closing):
     truth: dict[str, dict[str, Any]]
     sim: Any
     lock: threading.RLock
+    renderer: Closing | None = None
     _closed: bool = field(default=False, repr=False)
 
     def addresses(self) -> dict[str, str]:
@@ -98,6 +116,7 @@ class Emulation(Closing):
                 "port": self.robots[robot.name].address,
                 "baud": 115200,
                 "max_speed_m_s": 0.4,
+                "timeout_s": max(2.0, LINK_TIMEOUT_WALL * self.time_scale),
             }
             if robot.name in children:
                 entry["led_bits"] = list(LED_BITS[:leds])
@@ -109,11 +128,16 @@ class Emulation(Closing):
                 "driver": "geocom",
                 "port": self.total_station.address,
                 "baud": 115200,
-                "timeout_s": 10.0,
+                "timeout_s": max(10.0, LINK_TIMEOUT_WALL * self.time_scale),
             },
             "robots": robots,
             "cameras": [
-                {"name": name, "source": server.url, "settle_frames": 1, "timeout_s": 5.0}
+                {
+                    "name": name,
+                    "source": server.url,
+                    "settle_frames": 1,
+                    "timeout_s": CAMERA_TIMEOUT_WALL * self.time_scale,
+                }
                 for name, server in self.cameras.items()
             ],
             "emulator": {
@@ -132,16 +156,58 @@ class Emulation(Closing):
         return path
 
     def close(self) -> None:
-        """Stop every emulator and close the world's devices; twice is harmless."""
+        """Stop every emulator and close the world's devices; twice is harmless. Each is
+        closed even when another fails to; the first failure is raised at the end."""
         if self._closed:
             return
         self._closed = True
-        for server in self.cameras.values():
-            server.close()
-        for robot in self.robots.values():
-            robot.close()
-        self.total_station.close()
-        self.sim.close()
+        devices: list[Any] = [
+            *self.cameras.values(),
+            *self.robots.values(),
+            self.total_station,
+            self.renderer,
+            self.sim,
+        ]
+        failure: BaseException | None = None
+        for device in devices:
+            if device is None:
+                continue
+            try:
+                device.close()
+            except Exception as exc:
+                failure = failure or exc
+        if failure is not None:
+            raise failure
+
+
+class HidingLeds(MarkerLedsWrapper):
+    """A child's LEDs with the scenario's ``faults.hidden_led_rate``: when the LEDs light
+    after being all dark (an LED sequence starts), each stays dark with that probability
+    until they are all dark again (the sequence ends), as the twin hides an LED for one
+    observation. The camera emulators then show it dark.
+
+    Args:
+        inner: the world's LEDs. rate: the probability. rng: the draws.
+    """
+
+    def __init__(self, inner: MarkerLeds, rate: float, rng: np.random.Generator) -> None:
+        super().__init__(inner)
+        self.rate, self.rng = float(rate), rng
+        self._hidden = np.zeros(inner.count, dtype=bool)
+        self._dark = True
+
+    def switch(self, on: Sequence[bool]) -> LedSwitch:
+        flags = np.array([bool(v) for v in on])
+        if not flags.any():
+            self._dark = True
+            self._hidden[:] = False
+        elif self._dark and flags.shape == self._hidden.shape:
+            self._dark = False
+            self._hidden = self.rng.random(len(flags)) < self.rate
+        if flags.shape == self._hidden.shape:
+            flags &= ~self._hidden
+        event = self.inner.switch(flags.tolist())
+        return LedSwitch(event.child, event.timestamp, tuple(bool(v) for v in on))
 
 
 def _model(model: str) -> str:
@@ -179,6 +245,7 @@ def start_emulation(
     from twin.emulators.geocom import GeoComEmulator
     from twin.emulators.led_frames import GeometricLedFrames, RenderedLedFrames
     from twin.emulators.pioneer_body import PioneerBody
+    from twin.emulators.render_thread import RenderThread
     from twin.runner import built_markers
     from twin.sim.rig import FIDELITIES, build_sim_rig
     from twin.sim.world import build_world
@@ -192,19 +259,31 @@ def start_emulation(
         sc = sc.model_copy(update={"seed": check_seed(seed)})
     time = WallClock(time_scale)
     world = build_world(sc, markers=built_markers(sc))
-    sim = build_sim_rig(world, fidelity)
+    # The devices the emulators wrap (the instrument, the LEDs) are the same at both
+    # fidelities: the robots are moved by the velocities the drivers send, and only the
+    # cameras' frames differ, rendered in a thread that owns the OpenGL context.
+    sim = build_sim_rig(world, "geometric")
     lock = threading.RLock()
     streams = np.random.SeedSequence(sc.seed, spawn_key=(EMULATOR_STREAM,)).spawn(
-        len(sc.robots.all) + len(sc.cameras)
+        len(sc.robots.all) + len(sc.cameras) + 1
     )
     rngs = [np.random.default_rng(s) for s in streams]
     started: list[Closing] = []
+    renderer: RenderThread | None = None
     try:
+        if fidelity == "render":
+            renderer = RenderThread(world, seed=sc.seed)
+            started.append(renderer)
         station = GeoComEmulator(sim.rig.total_station, lock).start()
         started.append(station)
         robots: dict[str, Any] = {}
         children = {c.name for c in sc.robots.children}
         leds = len(sc.marker.leds)
+        world_leds: dict[str, MarkerLeds] = dict(sim.rig.leds)
+        if sc.faults.hidden_led_rate > 0:
+            world_leds = {
+                n: HidingLeds(d, sc.faults.hidden_led_rate, rngs[-1]) for n, d in world_leds.items()
+            }
         for k, robot in enumerate(sc.robots.all):
             body = PioneerBody(
                 world,
@@ -216,12 +295,13 @@ def start_emulation(
                 unreachable=sc.faults.unreachable,
             )
             link: Link = TcpLink() if links == "tcp" else PtyLink()
+            started.append(link)
             emulator = PioneerEmulator(
                 body,
                 model=_model(robot.model),
                 time=time,
                 link=link,
-                leds=sim.rig.leds.get(robot.name) if robot.name in children else None,
+                leds=world_leds.get(robot.name) if robot.name in children else None,
                 led_bits=LED_BITS[:leds] if robot.name in children else (),
                 robot_name=robot.name,
             ).start()
@@ -232,20 +312,23 @@ def start_emulation(
         for k, cam in enumerate(sc.cameras):
             rng = rngs[len(sc.robots.all) + k]
             if fidelity == "render":
-                frames = RenderedLedFrames(sim.simulator, cam.name, lock)
+                assert renderer is not None
+                frames = RenderedLedFrames(renderer, cam.name, lock)
             else:
                 frames = GeometricLedFrames(world, cam.name, sim.rig.leds, lock, rng)
             server = MjpegServer(frames, fps=camera_fps, **quality).start()
             started.append(server)
             cameras[cam.name] = server
+        truth = {
+            name: camera_to_dict(sim.frame.camera(world.camera(name)))
+            for name in world.camera_names
+        }
     except BaseException:
         for device in reversed(started):
-            device.close()
+            with contextlib.suppress(Exception):
+                device.close()
         sim.close()
         raise
-    truth = {
-        name: camera_to_dict(sim.frame.camera(world.camera(name))) for name in world.camera_names
-    }
     return Emulation(
         scenario=sc,
         fidelity=fidelity,
@@ -256,6 +339,7 @@ def start_emulation(
         truth=truth,
         sim=sim,
         lock=lock,
+        renderer=renderer,
     )
 
 

@@ -128,3 +128,26 @@ def test_the_checks_catch_what_they_guard(tmp_path):
     assert any(n.startswith(SIM_FORBIDDEN) for n in names)
     assert any(n.startswith("twin.hal") for n in names)
     assert "noise" in _attributes(bad)
+
+
+DRIVERS = ROOT / "twin" / "drivers"
+SIMULATORS = ("twin.sim", "twin.emulators", "mujoco")
+
+
+@pytest.mark.parametrize("path", _modules(DRIVERS), ids=_relative)
+def test_the_drivers_need_no_simulator(path):
+    # Real hardware runs without MuJoCo: a driver implements twin.hal and nothing else's.
+    for name in _imports(path):
+        assert not name.startswith(SIMULATORS), f"{_relative(path)} imports {name}"
+
+
+def test_a_run_on_real_devices_loads_no_simulator():
+    code = (
+        "import sys, twin.hardware_run, twin.drivers.probe, twin.replay, twin.drivers.geocom\n"
+        "import twin.drivers.arcos.base, twin.drivers.arcos.leds, twin.drivers.camera\n"
+        "bad = [m for m in sys.modules if m.startswith(('mujoco', 'twin.sim', 'twin.emulators'))]\n"
+        "print(bad)\n"
+        "assert not bad, bad\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr

@@ -31,7 +31,7 @@ def test_devices_lists_what_every_device_said_and_the_leds_a_camera_saw(
     out = capsys.readouterr().out
     assert "total station total_station: name TS16 R500; serial 1234567" in out
     for robot, model in (("parent", "p3at"), ("child1", "p3dx"), ("child2", "p3dx")):
-        assert f"robot {robot}: name {robot}; type Pioneer; subtype {model}; battery_v" in out
+        assert f"robot {robot}: name {robot}; type Pioneer; subtype {model}-sh; battery_v" in out
     assert "camera cam1:" in out
     assert "resolution (320, 240)" in out
     # The children stand where cam1 sees them at the start: a blink shows every LED.
@@ -74,12 +74,26 @@ def test_twin_options_are_refused_with_a_rig(tmp_path, capsys):
 def test_a_device_that_cannot_be_opened_is_named(tmp_path, capsys):
     rig = tmp_path / "rig.toml"
     text = (ROOT / "examples" / "paper_rig.toml").read_text()
-    rig.write_text(text.replace("/dev/ttyUSB0", str(tmp_path / "no-such-port")))
+    rig.write_text(text.replace("/dev/ttyUSB0", str(tmp_path / "[/x]no-such-port")))
     code = main(["run", str(SMOKE), "--rig", str(rig), "--out", str(tmp_path / "o")])
     assert code == 2
     out = capsys.readouterr().out
     assert "total station at" in out
-    assert "no-such-port" in out
+    assert "[/x]no-such-port" in out
+
+
+def test_devices_shows_what_a_device_said_as_text(tmp_path, capsys):
+    rig = tmp_path / "rig.toml"
+    text = (ROOT / "examples" / "paper_rig.toml").read_text()
+    for k, port in enumerate(("/dev/ttyUSB0", "/dev/ttyS0", "socket://192.168.1.21:8101")):
+        text = text.replace(port, str(tmp_path / f"no-port-{k}"))
+    text = text.replace("socket://192.168.1.22:8101", str(tmp_path / "no-port-3"))
+    for k, source in enumerate(("rtsp://192.168.1.31/stream1", "rtsp://192.168.1.32/stream1")):
+        text = text.replace(source, str(tmp_path / f"[/x]cam{k}.avi"))
+    rig.write_text(text.replace("http://192.168.1.33/video.mjpg", str(tmp_path / "cam2.avi")))
+    assert main(["devices", str(rig), "--no-blink"]) == 1
+    out = capsys.readouterr().out
+    assert "[/x]cam0.avi" in out.replace("\n", "").replace(" ", "")
 
 
 def test_emulate_refuses_a_bad_scenario(tmp_path, capsys):

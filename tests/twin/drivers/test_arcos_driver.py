@@ -4,6 +4,7 @@ e-stops, time-outs, noisy lines and lost robots end as the interface promises.""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import socket
 import threading
@@ -179,12 +180,18 @@ def test_a_drive_lands_where_the_world_puts_the_robot(rig, link):
 def test_set_pose_reanchors_odometry_and_later_drives(rig):
     r = rig("tcp")
     ident = r.conn.identify()
-    assert ident == {"name": "child1", "type": "Pioneer", "subtype": "p3dx", "battery_v": 13.0}
+    assert ident == {"name": "child1", "type": "Pioneer", "subtype": "p3dx-sh", "battery_v": 13.0}
     r.base.set_pose(10.0, -4.0, 1.0)
+    odo = r.base.odometry()
+    assert (odo.x, odo.y, odo.yaw) == (10.0, -4.0, 1.0)  # exactly, not nearly
     r.conn.wait_for(lambda s: True)
     r.conn.wait_for(lambda s: True)
     odo = r.base.odometry()
-    assert (odo.x, odo.y, odo.yaw) == pytest.approx((10.0, -4.0, 1.0), abs=1e-6)
+    assert (odo.x, odo.y, odo.yaw) == (10.0, -4.0, 1.0)  # at rest: the same SIP pose
+    r.base.set_pose(-0.1, 0.2, -3.0)
+    odo = r.base.odometry()
+    assert (odo.x, odo.y, odo.yaw) == (-0.1, 0.2, -3.0)
+    r.base.set_pose(10.0, -4.0, 1.0)
     # In the new frame, 0.8 m ahead along its believed heading is 0.8 m ahead in truth.
     before = r.truth()
     goal = np.array([10.0 + 0.8 * math.cos(1.0), -4.0 + 0.8 * math.sin(1.0)])
@@ -275,6 +282,38 @@ def test_e_stop_and_timeout_stop_the_robot(rig):
     assert not r.body.moving
 
 
+def test_motors_switched_off_end_a_drive_blocked(rig):
+    r = rig()
+    r.conn.send(Command.ENABLE, 0)
+    r.conn.wait_for(lambda s: not s.motors_enabled)
+    result = r.base.drive_to(r.truth()[:2] + np.array([1.0, 0.0]))
+    assert result.status is DriveStatus.BLOCKED
+    assert result.message == "motors disabled"
+    assert not r.body.moving
+
+
+def test_a_drive_that_fails_on_the_host_stops_the_robot(rig, monkeypatch):
+    """The keep-alive would keep a robot driving at its last command: a control loop that
+    raises must stop it before the error goes on."""
+    r = rig()
+    control = r.base._control
+    calls = []
+
+    def failing(*args):
+        calls.append(args)
+        if len(calls) > 5:
+            raise RuntimeError("controller bug")
+        return control(*args)
+
+    monkeypatch.setattr(r.base, "_control", failing)
+    with pytest.raises(RuntimeError, match="controller bug"):
+        r.base.drive_to(r.truth()[:2] + np.array([2.0, 0.0]))
+    r.conn.wait_for(lambda s: not s.moving, 5.0)
+    sent = [c for c in r.emulator.commands if c[0] in (Command.VEL, Command.RVEL)]
+    assert sent[-2:] == [(Command.VEL, 0), (Command.RVEL, 0)]
+    assert r.emulator.watchdog_trips == 0  # stopped by command, not by the watchdog
+
+
 def test_a_noisy_line_does_not_break_the_session(rig):
     r = rig()
     r.faults.garbage = b"\x01\x02\xfa\x99junk"
@@ -344,6 +383,9 @@ def test_nobody_answering_or_the_wrong_model(rig):
     r = rig("tcp", connect=False)
     with pytest.raises(ValueError, match="p3at"):
         PioneerConnection(r.emulator.address, model="p3at", clock=r.clock)
+    for pulse_s in (0.0, 1.5, math.nan):  # a PULSE at least twice per 2 s watchdog
+        with pytest.raises(ValueError, match="pulse_s"):
+            PioneerConnection(r.emulator.address, model="p3dx", clock=r.clock, pulse_s=pulse_s)
 
 
 def test_a_session_left_open_is_closed_and_opened_again(rig):
@@ -363,3 +405,12 @@ def test_a_session_left_open_is_closed_and_opened_again(rig):
         assert Command.CLOSE in [n for n, _ in r.emulator.commands]
     finally:
         conn.close()
+
+
+def test_an_h8_controller_is_refused_for_its_other_distance_units(rig):
+    # A bare subtype is the older H8 controller: its positions come in 0.485 mm units, which
+    # read as millimetres would put the robot twice as far as it went.
+    r = rig("pty", connect=False)
+    r.emulator.params = dataclasses.replace(r.emulator.params, subtype="p3dx")
+    with pytest.raises(ValueError, match="H8 controller"):
+        PioneerConnection(r.emulator.address, model="p3dx", clock=r.clock)

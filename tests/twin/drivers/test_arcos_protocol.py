@@ -33,6 +33,11 @@ from twin.drivers.arcos.protocol import (
 )
 
 # -- packets by hand ---------------------------------------------------------------------------
+# The first three and ENABLE 1 are printed in the Pioneer 3 Operations Manual (ARCOS chapter,
+# "The Client-Server Connection": "SYNC0: 250, 251, 3, 0, 0, 0" and so on; ENABLE 1 as
+# "0xFA, 0xFB, 0x06, 0x04, 0x3B, 0x01, 0x00, 0x05, 0x3B"); the others follow its rules:
+# words of successive payload bytes, high byte first, summed modulo 2**16, an odd last byte
+# XORed into the low byte, the checksum sent high byte first.
 
 
 @pytest.mark.parametrize(
@@ -50,8 +55,16 @@ from twin.drivers.arcos.protocol import (
         (Command.VEL, -200, "fa fb 06 0b 1b c8 00 d3 1b"),
         # RVEL 10: words 0x153B + 0x0A00 = 0x1F3B.
         (Command.RVEL, 10, "fa fb 06 15 3b 0a 00 1f 3b"),
-        # DIGOUT mask 0x0F, bits 0x05: argument 0x0F05, words 0x1E3B + 0x050F = 0x234A.
+        # DIGOUT mask 0x0F (bits 8-15), outputs 0x05 (bits 0-7): argument 0x0F05,
+        # words 0x1E3B + 0x050F = 0x234A.
         (Command.DIGOUT, 0x0F05, "fa fb 06 1e 3b 05 0f 23 4a"),
+        # SETA -300 (a deceleration): NINT |300| = 0x012C, words 0x051B + 0x2C01 = 0x311C.
+        (Command.SETA, -300, "fa fb 06 05 1b 2c 01 31 1c"),
+        # VEL2 left +10, right -10 (x 20 mm/s): bits 8-15 left 0x0A, bits 0-7 right 0xF6,
+        # argument 0x0AF6, words 0x203B + 0xF60A = 0x1645 (modulo 2**16).
+        (Command.VEL2, 0x0AF6, "fa fb 06 20 3b f6 0a 16 45"),
+        # STOP: 0x001D.
+        (Command.STOP, None, "fa fb 03 1d 00 1d"),
         # E_STOP: one byte, XORed into the low byte: 0x0037.
         (Command.E_STOP, None, "fa fb 03 37 00 37"),
         # A string "ab": words 0x0F2B + 0x0261 = 0x118C, last byte 0x62 XORed: 0x11EE.
@@ -60,6 +73,51 @@ from twin.drivers.arcos.protocol import (
 )
 def test_commands_match_the_manual(number, argument, packet):
     assert command(number, argument) == bytes.fromhex(packet)
+    expected = argument.encode() if isinstance(argument, str) else argument
+    assert parse_command(unframe(bytes.fromhex(packet))) == (number, expected)
+
+
+def test_command_numbers_are_the_manuals():
+    assert (Command.PULSE, Command.OPEN, Command.CLOSE, Command.ENABLE) == (0, 1, 2, 4)
+    assert (Command.SETA, Command.SETV, Command.SETRV, Command.VEL) == (5, 6, 10, 11)
+    assert (Command.RVEL, Command.STOP, Command.DIGOUT, Command.VEL2) == (21, 29, 30, 32)
+    assert Command.E_STOP == 55
+    assert (SYNC0, SYNC1, SYNC2) == (0, 1, 2)
+
+
+def test_a_sip_written_by_hand_decodes():
+    """A standard SIP laid out field by field as the manual's table has it."""
+    payload = bytes.fromhex(
+        "33"  # type: robot moving
+        "e8 83"  # XPOS 0x83E8: 15 bits kept, 0x03E8 = 1000
+        "d0 07"  # YPOS 2000
+        "00 fc"  # THPOS -1024 (a quarter turn clockwise)
+        "2c 01"  # L VEL 300
+        "d4 fe"  # R VEL -300
+        "79"  # BATTERY 12.1 V
+        "01 01"  # STALL AND BUMPERS: left (bit 0) and right (bit 8) stalled
+        "00 fc"  # CONTROL -1024
+        "21 00"  # FLAGS: motors enabled (bit 0), STOP button (bit 5)
+        "2d"  # COMPASS 90 degrees
+        "02 03 f4 01 04 e8 03"  # 2 sonar readings: #3 500 mm, #4 1000 mm
+        "00 01 80 0f 5a"  # GRIP_STATE, ANPORT, ANALOG, DIGIN, DIGOUT
+        "7a 00"  # BATTERYX10 12.2 V
+        "00"  # CHARGESTATE
+        "f0 fd"  # ROTVEL -528: -52.8 deg/s
+        "00 00"  # FAULTFLAGS
+    )
+    sip = decode_sip(unframe(frame(payload)))
+    assert sip.moving
+    assert (sip.xpos, sip.ypos, sip.thpos) == (1000, 2000, -1024)
+    assert (sip.left_vel, sip.right_vel, sip.battery) == (300, -300, 121)
+    assert (sip.stalled, sip.estop, sip.motors_enabled) == (True, True, True)
+    assert sip.compass == 45
+    assert sip.sonars == ((3, 500), (4, 1000))
+    assert (sip.anport, sip.analog, sip.digin, sip.digout) == (1, 128, 15, 0x5A)
+    assert (sip.battery_x10, sip.charge_state, sip.rotvel, sip.fault_flags) == (122, 0, -528, 0)
+    assert sip.battery_volts == pytest.approx(12.2)
+    dx = PLATFORMS["p3dx"]
+    assert dx.heading_rad(sip.thpos) == pytest.approx(-math.pi / 2)
 
 
 def test_checksum_of_odd_and_even_payloads():
@@ -186,6 +244,10 @@ def test_sip_flags():
     assert sip.stalled
     assert sip.estop
     assert sip.motors_enabled
+    bumpers_only = Sip(0.0, False, 0, 0, 0, 0, 0, 121, 0xFEFE, 0, 0x0040)
+    assert not bumpers_only.stalled  # bits 1-7 and 9-15 are bumpers, not stalls
+    assert not bumpers_only.estop  # bit 6 is E_STALL, not the STOP button
+    assert not bumpers_only.motors_enabled
     assert sip.battery_volts == pytest.approx(12.1)
     with pytest.raises(ProtocolError, match="not a standard SIP"):
         decode_sip(bytes([0x90, 0, 0]))
@@ -194,9 +256,14 @@ def test_sip_flags():
 
 
 def test_platform_conversion_factors():
+    """ARIA's p3dx-sh.p / p3at-sh.p: DistConvFactor 1, VelConvFactor 1, AngleConvFactor
+    2 pi / 4096 (0.001534 rounded), DiffConvFactor 0.0056 / 0.0034, Vel2Divisor 20."""
     dx, at = PLATFORMS["p3dx"], PLATFORMS["p3at"]
     for p in (dx, at):
-        assert (p.dist_conv, p.vel_conv, p.angle_conv) == (1.0, 1.0, 0.001534)
+        assert (p.dist_conv, p.vel_conv, p.vel2_divisor) == (1.0, 1.0, 20.0)
+        assert p.angle_conv == pytest.approx(0.001534, abs=5e-7)
+        assert p.heading_units(math.pi / 2) == 1024  # 4096 units per turn
+        assert p.heading_rad(2048) == pytest.approx(math.pi)
         assert p.position_roll_over == pytest.approx(32.768)
         for a in (-3.1, -0.5, 0.0, 0.001, 1.2, 3.1):
             assert p.heading_rad(p.heading_units(a)) == pytest.approx(a, abs=p.angle_conv)
@@ -204,7 +271,11 @@ def test_platform_conversion_factors():
         assert p.wheel_mps(p.wheel_units(-0.4567)) == pytest.approx(-0.457)
     assert dx.diff_conv == 0.0056
     assert at.diff_conv == 0.0034
-    assert math.isclose(4096 * dx.angle_conv, 2 * math.pi, rel_tol=1e-4)
+    assert 4096 * dx.angle_conv == pytest.approx(2 * math.pi, rel=1e-12)
+    # DiffConvFactor turns half the wheel-speed difference into a turn rate: a P3-DX with
+    # its wheels at -/+ 100 mm/s turns at 0.56 rad/s (its track is 2 / 0.0056 = 357 mm).
+    assert dx.turn_rate(-100, 100) == pytest.approx(0.56)
+    assert at.turn_rate(100, -100) == pytest.approx(-0.34)
     assert platform("P3AT") is at
     with pytest.raises(ValueError, match="p3xx"):
         platform("p3xx")

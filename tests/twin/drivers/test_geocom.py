@@ -30,6 +30,7 @@ from twin.drivers.geocom_codes import (
 )
 from twin.emulators.geocom import Fault, GeoComEmulator
 from twin.emulators.links import PtyLink, TcpLink
+from twin.hal.devices import DOCUMENTED_ERRORS
 from twin.hal.errors import DeviceLostError
 from twin.instruments.errors import (
     DistanceMeasurementError,
@@ -317,6 +318,34 @@ def test_return_codes_become_typed_errors(
     assert caught.value.details["code"] == code
     driver.point([4.0, 0.0, 1.0])
     driver.measure()  # the instrument is still there
+
+
+@pytest.mark.parametrize(
+    ("code", "rpc", "method", "kind"),
+    [
+        (8710, MAKE_POSITIONING, "point", NoPrismInConeError),  # AUT_NO_TARGET
+        (22, MAKE_POSITIONING, "point", TiltOutOfRangeError),  # INSTRUMENT_TILT
+        (1292, GET_ANGLE1, "read_inclination", DistanceMeasurementError),  # TMC_DIST_ERROR
+        (818, GET_ANGLE1, "read_inclination", OutOfRangeError),  # EDM_DISTRANGE_ERR
+    ],
+)
+def test_a_code_a_method_does_not_document_is_a_fault(
+    driver: GeoComTotalStation,
+    emulator: GeoComEmulator,
+    code: int,
+    rpc: int,
+    method: str,
+    kind: type[Exception],
+) -> None:
+    assert kind not in DOCUMENTED_ERRORS[f"TotalStation.{method}"]
+    emulator.faults.set(Fault.CODE, code=code, rpc=rpc, times=1)
+    call = getattr(driver, method)
+    with pytest.raises(InstrumentFaultError) as caught:
+        call([4.0, 0.0, 1.0]) if method == "point" else call()
+    assert caught.type is InstrumentFaultError
+    assert f"GeoCOM return code {code} (" in str(caught.value)
+    assert caught.value.details["code"] == code
+    call([4.0, 0.0, 1.0]) if method == "point" else call()  # the instrument is still there
 
 
 def test_errors_of_the_twin_travel_as_codes(

@@ -130,7 +130,7 @@ def robot():
             client.send(bytes.fromhex(sync))
             assert client.packet() == bytes.fromhex(sync)[3:4]
         client.send(bytes.fromhex("fa fb 03 02 00 02"))
-        assert parse_sync2_reply(client.packet()) == ("child1", "Pioneer", "p3dx")
+        assert parse_sync2_reply(client.packet()) == ("child1", "Pioneer", "p3dx-sh")
         client.send(bytes.fromhex("fa fb 03 01 00 01"))  # OPEN
         return emulator, client, body, clock
 
@@ -183,9 +183,14 @@ def test_the_watchdog_stops_a_robot_that_hears_nothing(robot):
     assert emulator.watchdog_trips == 1
     stopped_at = stopped.xpos
     assert stopped_at > 0
-    # The session goes on: a new command moves it again.
-    client.send(command(Command.VEL, 200))
+    # The session goes on: the next packet, a PULSE even, revives it, and it accelerates
+    # again to the speeds it was last told (the manual's watchdog).
+    client.send(command(Command.PULSE))
+    revived = client.until(lambda s: s.moving, 5.0)
+    assert revived.right_vel < revived.left_vel  # RVEL -10 still holds: turning clockwise
     assert client.sips_for(0.6)[-1].xpos > stopped_at
+    client.send(command(Command.VEL, 0) + command(Command.RVEL, 0))
+    assert not client.until(lambda s: not s.moving, 5.0).moving
 
 
 def test_bad_packets_are_dropped_and_the_session_goes_on(robot):

@@ -101,7 +101,7 @@ def test_the_campaign_over_the_protocols_agrees_with_the_twin(tmp_path):
     assert log.complete
     devices = {m.data["device"]: m.data for m in log.messages if m.topic == "/rig/device"}
     assert devices["total_station"]["name"] == "TS16 R500"
-    assert devices["child1"]["subtype"] == "p3dx"
+    assert devices["child1"]["subtype"] == "p3dx-sh"
     assert devices["cam1"]["resolution"] == [320, 240]
 
 
@@ -274,3 +274,20 @@ def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
             if m.topic == "/campaign/failure" and m.data["kind"] == "instrument_fault"
         ]
         assert all("4242" in f and "unknown" in f for f in faults), faults
+
+
+def test_the_render_fidelity_serves_rendered_frames_in_which_the_leds_are_found(tmp_path):
+    from twin.drivers.probe import probe_rig
+
+    em = start_emulation(SMOKE, fidelity="render", time_scale=SCALE, camera_fps=30.0)
+    try:
+        rig = load_rig_file(em.write_rig_file(tmp_path / "rig.toml"))
+        reports = {(r.kind, r.device): r for r in probe_rig(rig)}
+    finally:
+        em.close()
+    assert all(r.ok for r in reports.values()), reports
+    # Both children stand in cam1's view at the start, child1 near the image's right edge:
+    # a blink in the rendered images finds their LEDs (one may be cut by the edge).
+    found = [int(reports["LEDs", c].facts["found"].split()[0]) for c in ("child1", "child2")]
+    assert min(found) >= 2
+    assert sum(found) >= 6

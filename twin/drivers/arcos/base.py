@@ -2,10 +2,12 @@
 :class:`~twin.drivers.arcos.connection.PioneerConnection`.
 
 ARCOS reports odometry in its own frame (zero where the session opened) and cannot be told
-an arbitrary pose, so the base keeps the transform from that frame to W on the host:
-``W pose = odo2w (x) ARCOS pose``. It starts from where the robot stood in W when the
-connection opened and is re-anchored by :meth:`ArcosBase.set_pose`. Drives are a go-to-pose
-controller on the host, one velocity command (VEL, RVEL) per SIP.
+an arbitrary pose, so the base keeps an anchor on the host: a pose in W and the ARCOS pose
+that had it. ``W pose = anchor_w (x) (anchor_odo^-1 (x) ARCOS pose)``, the relative motion
+computed so that an unchanged ARCOS pose reads back the anchor exactly. The anchor starts
+where the robot stood in W when the connection opened and is moved by
+:meth:`ArcosBase.set_pose`. Drives are a go-to-pose controller on the host, one velocity
+command (VEL mm/s, RVEL deg/s) per SIP.
 """
 
 from __future__ import annotations
@@ -51,7 +53,17 @@ def _inverse(a: np.ndarray) -> np.ndarray:
     return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
 
 
+def _relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a^-1 (x) b, exactly (0, 0, 0) when b equals a."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])
+
+
 def _wrap(angle: float) -> float:
+    """The angle in (-pi, pi]; one already there is returned unchanged."""
+    if -math.pi < angle <= math.pi:
+        return float(angle)
     return math.atan2(math.sin(angle), math.cos(angle))
 
 
@@ -102,8 +114,13 @@ class ArcosBase(MobileBase):
         self.yaw_tolerance = float(yaw_tolerance)
         self.drive_timeout_s = float(drive_timeout_s)
         self._closed = False
-        first = connection.pose()
-        self._odo2w = _compose(start, _inverse(first.pose))
+        self._anchor_w = start
+        self._anchor_odo = connection.pose().pose
+
+    @property
+    def _odo2w(self) -> np.ndarray:
+        """The ARCOS-to-W transform the anchor makes."""
+        return _compose(self._anchor_w, _inverse(self._anchor_odo))
 
     @property
     def name(self) -> str:
@@ -111,7 +128,7 @@ class ArcosBase(MobileBase):
 
     # -- localisation ---------------------------------------------------------------------------
     def _to_w(self, pose: ArcosPose) -> np.ndarray:
-        return _compose(self._odo2w, pose.pose)
+        return _compose(self._anchor_w, _relative(self._anchor_odo, pose.pose))
 
     def _reading(self, pose: ArcosPose) -> OdometryReading:
         w = self._to_w(pose)
@@ -136,7 +153,8 @@ class ArcosBase(MobileBase):
         if not all(math.isfinite(v) for v in (x, y, yaw)):
             raise ValueError(f"a pose fix must be finite, got x={x}, y={y}, yaw={yaw}")
         pose = self.connection.pose()
-        self._odo2w = _compose(np.array([x, y, yaw], dtype=float), _inverse(pose.pose))
+        self._anchor_w = np.array([x, y, yaw], dtype=float)
+        self._anchor_odo = pose.pose
 
     # -- driving ---------------------------------------------------------------------------
     def _command(self, v: float, w: float) -> None:
@@ -191,12 +209,15 @@ class ArcosBase(MobileBase):
         """Drive to (x, y) m in W, turn to ``goal_yaw`` rad if given, stop; block until
         stopped.
 
-        Ends BLOCKED (``stalled``, ``e-stop``) when a SIP reports a stall or the emergency
-        stop, TIMEOUT after ``drive_timeout_s``; the robot is stopped either way. A goal that
-        is not finite ends BLOCKED at once, the robot not moved.
+        Ends BLOCKED (``stalled``, ``e-stop``, ``motors disabled``) when a SIP reports a
+        stall, the emergency stop or the motors off, TIMEOUT after ``drive_timeout_s``; the
+        robot is stopped either way. A goal that is not finite ends BLOCKED at once, the
+        robot not moved.
 
         Raises:
             DeviceLostError: the link failed or the robot fell silent (a stop was tried).
+            Anything else the loop raises (an interrupt, a bug) also stops the robot first:
+            the keep-alive PULSEs would otherwise keep it driving at its last command.
         """
         g = np.asarray(goal_xy, dtype=float).reshape(2)
         goal_w = np.array([g[0], g[1], np.nan if goal_yaw is None else float(goal_yaw)])
@@ -226,6 +247,9 @@ class ArcosBase(MobileBase):
                 if sip.stalled:
                     status, message = DriveStatus.BLOCKED, "stalled"
                     break
+                if not sip.motors_enabled:
+                    status, message = DriveStatus.BLOCKED, "motors disabled"
+                    break
                 elapsed = self.clock.now() - start
                 if elapsed > self.drive_timeout_s:
                     status = DriveStatus.TIMEOUT
@@ -237,8 +261,8 @@ class ArcosBase(MobileBase):
                 self._command(*command)
             self._stop()
             self._wait_stopped()
-        except DeviceLostError:
-            with contextlib.suppress(DeviceLostError):
+        except BaseException:
+            with contextlib.suppress(Exception):
                 self._stop()
             raise
         now = self.clock.now()

@@ -7,6 +7,14 @@ A reader thread then decodes the SIPs the robot sends and keeps the newest, and 
 thread sends PULSE well within the robot's watchdog period. :meth:`close` stops the robot,
 sends CLOSE and closes the port.
 
+The serial line is pyserial's default 8 data bits, no parity, 1 stop bit, at 9600 baud
+unless told otherwise (the rate ARCOS' HOST port and ARIA start at; HOSTBAUD, command 50,
+can switch the robot to 19200-115200, which this driver does not do).
+
+The keep-alive keeps the robot's watchdog fed for as long as the process lives, so whoever
+drives must stop the robot when its own control loop fails (see
+:meth:`twin.drivers.arcos.base.ArcosBase.drive_to`).
+
 Times are rig seconds of the :class:`~twin.drivers.clock.WallClock` (converted with
 :meth:`~twin.drivers.clock.WallClock.wall` wherever the connection waits).
 """
@@ -44,8 +52,11 @@ from twin.drivers.arcos.protocol import command as command_packet
 from twin.drivers.clock import WallClock
 from twin.hal.errors import DeviceLostError
 
+WATCHDOG_S = 2.0
+"""ARCOS' default watchdog: with no packet from the client for this long (s) it stops."""
+
 PULSE_PERIOD = 0.5
-"""Rig seconds between keep-alive PULSEs (ARCOS' watchdog waits 2 s by default)."""
+"""Rig seconds between keep-alive PULSEs: a quarter of the watchdog."""
 
 _SYNCS = (SYNC0, SYNC1, SYNC2)
 
@@ -81,17 +92,19 @@ class PioneerConnection(Closing):
 
     Args:
         port: what pyserial opens (``/dev/ttyUSB0``, a pty's path, ``socket://host:port``).
-        model: ``p3dx`` or ``p3at`` (the robot's subtype must start with it).
+        model: ``p3dx`` or ``p3at`` (the robot must report the ARCOS subtype ``p3dx-sh``
+            or ``p3at-sh``).
         clock: the rig's wall clock.
         baud: the serial line's speed (ignored over TCP).
         timeout_s: rig seconds without an answer (a SYNC echo, a SIP) after which the robot
             is taken for lost.
         name: the robot's name in errors and readings.
-        pulse_s: rig seconds between keep-alive PULSEs.
+        pulse_s: rig seconds between keep-alive PULSEs (under half the watchdog, 2 s).
 
     Raises:
         DeviceLostError: the port would not open, or the robot did not synchronise.
-        ValueError: the robot reports a subtype of another model.
+        ValueError: the robot reports a subtype of another model; a bad ``timeout_s`` or
+            ``pulse_s``.
     """
 
     def __init__(
@@ -108,6 +121,11 @@ class PioneerConnection(Closing):
         self.params: PlatformParams = platform(model)
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ValueError(f"timeout_s must be a positive number of seconds, got {timeout_s}")
+        if not (math.isfinite(pulse_s) and 0 < pulse_s <= 0.5 * WATCHDOG_S):
+            raise ValueError(
+                f"pulse_s must be in (0, {0.5 * WATCHDOG_S}] s (the watchdog waits "
+                f"{WATCHDOG_S} s), got {pulse_s}"
+            )
         self.port = port
         self.clock = clock
         self.timeout_s = float(timeout_s)
@@ -132,10 +150,18 @@ class PioneerConnection(Closing):
             raise DeviceLostError(name, f"cannot open {port}: {e}", port=port) from None
         try:
             self._handshake()
-            if not self.robot_subtype.lower().startswith(self.params.model):
+            subtype = self.robot_subtype.lower()
+            if subtype == self.params.model:
+                raise ValueError(
+                    f"{name}: the robot on {port} reports subtype {self.robot_subtype!r}: the "
+                    "older H8 controller, whose distance units (0.485 or 0.465 mm) this driver "
+                    f"does not use; expected ARCOS ({self.params.subtype!r})"
+                )
+            if subtype != self.params.subtype:
                 raise ValueError(
                     f"{name}: the robot on {port} reports subtype {self.robot_subtype!r}, "
-                    f"expected a {self.params.model!r}"
+                    f"expected {self.params.subtype!r} (the rig file's model "
+                    f"{self.params.model!r})"
                 )
             self._write(command_packet(Command.OPEN))
         except (serial.SerialException, OSError) as e:
@@ -153,6 +179,11 @@ class PioneerConnection(Closing):
         try:
             self.wait_for(lambda s: True)
             self.send(Command.ENABLE, 1)
+            # Drives read the motors flag: wait until a SIP shows the motors enabled (a
+            # robot whose STOP button is pressed may not enable them; that is no failure).
+            with contextlib.suppress(DeviceLostError):
+                self.wait_for(lambda s: s.motors_enabled or s.estop)
+            self.latest()  # but a robot that fell silent meanwhile is lost
         except BaseException:
             self.close()
             raise
@@ -303,8 +334,13 @@ class PioneerConnection(Closing):
             DeviceLostError: the link failed, or no SIP came for ``timeout_s``.
         """
         with self._cond:
-            self._check()
             sip = self._latest
+        return self._fresh(sip)
+
+    def _fresh(self, sip: Sip | None) -> Sip:
+        """``sip``, checked to be recent and the link to be up."""
+        with self._cond:
+            self._check()
         if sip is None or self.clock.now() - sip.timestamp > self.timeout_s:
             age = "ever" if sip is None else f"{self.clock.now() - sip.timestamp:.2f} s"
             raise DeviceLostError(
@@ -314,8 +350,9 @@ class PioneerConnection(Closing):
 
     def pose(self) -> ArcosPose:
         """The odometry of the newest SIP (raises as :meth:`latest`)."""
-        self.latest()
-        pose = self._pose
+        with self._cond:
+            sip, pose = self._latest, self._pose
+        self._fresh(sip)
         assert pose is not None
         return pose
 

@@ -1,16 +1,19 @@
 """The ARCOS client-server protocol of the Pioneer 3 robots, as data and pure functions.
 
-Written from the Pioneer 3 Operations Manual (MobileRobots, chapter "ARCOS": packet
-protocol, client commands, server information packets) and the robots' published
-parameters. Nothing here touches a port.
+Written from the Pioneer 3 Operations Manual (MobileRobots / Adept MobileRobots, chapter
+"ARCOS": packet protocol, client-server connection, client commands, server information
+packets) and the robots' published parameter files (ARIA's ``params/p3dx-sh.p`` and
+``params/p3at-sh.p``). Nothing here touches a port.
 
 Packet (both directions)::
 
     0xFA 0xFB | count | payload (count - 2 bytes) | checksum (2 bytes, high byte first)
 
 ``count`` is the number of bytes after it: the payload plus the two checksum bytes (at most
-200). The checksum runs over the payload only: successive byte pairs are added as 16-bit
-big-endian words (modulo 2**16); a last odd byte is XORed into the low byte.
+200; the robot ignores a command whose count exceeds 200). The checksum runs over the
+payload only: successive byte pairs are added as 16-bit big-endian words (modulo 2**16); a
+last odd byte is XORed into the low byte. The manual's own examples hold:
+SYNC0 is ``FA FB 03 00 00 00`` and ENABLE 1 is ``FA FB 06 04 3B 01 00 05 3B``.
 
 A client command's payload is its number (one byte), then optionally an argument type and
 the argument: ``0x3B`` a positive integer, ``0x1B`` a negative integer (its absolute value
@@ -53,7 +56,7 @@ class Command(enum.IntEnum):
     ENABLE = 4
     """1 enables the motors, 0 disables them."""
     SETA = 5
-    """Translational acceleration, mm/s^2."""
+    """Translational acceleration (positive argument) or deceleration (negative), mm/s^2."""
     SETV = 6
     """Maximum translational speed, mm/s."""
     SETRV = 10
@@ -63,12 +66,13 @@ class Command(enum.IntEnum):
     RVEL = 21
     """Rotational velocity, deg/s, signed (counter-clockwise positive)."""
     STOP = 29
-    """Stop (decelerating)."""
+    """Stop (decelerating); the motors stay enabled."""
     DIGOUT = 30
-    """User digital outputs: high byte selects the bits to change, low byte sets them."""
+    """User digital outputs: bits 8-15 are a mask selecting the outputs to change, bits 0-7
+    set (1) or reset (0) the selected ones."""
     VEL2 = 32
-    """Independent wheel velocities: high byte left, low byte right (signed bytes, units of
-    ``Vel2Divisor`` mm/s)."""
+    """Independent wheel velocities: bits 8-15 left, bits 0-7 right (signed bytes, units of
+    ``Vel2Divisor`` = 20 mm/s)."""
     E_STOP = 55
     """Emergency stop: stops at once, overriding the deceleration."""
 
@@ -76,8 +80,9 @@ class Command(enum.IntEnum):
 SYNC0 = 0
 SYNC1 = 1
 SYNC2 = 2
-"""The synchronisation packets a client sends in turn before OPEN; the robot echoes each,
-and answers SYNC2 with its name, type and subtype."""
+"""The synchronisation packets a client sends in turn before OPEN; the robot echoes SYNC0
+and SYNC1 verbatim and answers SYNC2 with its name, type (class) and subtype (subclass),
+three NUL-terminated strings."""
 
 
 class ArgType(enum.IntEnum):
@@ -102,7 +107,9 @@ STALL_RIGHT = 1 << 8
 FLAG_MOTORS = 1 << 0
 """FLAGS bit 0: the motors are enabled."""
 FLAG_ESTOP = 1 << 5
-"""FLAGS bit 5 (with bit 6 the stop-button bits): the emergency stop is engaged."""
+"""FLAGS bit 5: the STOP (emergency stop) button is pressed or not yet relieved."""
+FLAG_ESTALL = 1 << 6
+"""FLAGS bit 6: E_STALL engaged (a stop that also disabled the motors)."""
 
 
 class ProtocolError(ValueError):
@@ -239,16 +246,18 @@ class Sip:
         thpos: heading, platform units (x AngleConvFactor = rad), signed.
         left_vel, right_vel: wheel velocities, platform units (x VelConvFactor = mm/s).
         battery: battery charge, tenths of a volt (one byte).
-        stall_bumpers: STALL AND BUMPERS (bit 0 left stall, bit 8 right stall).
+        stall_bumpers: STALL AND BUMPERS (bit 0 left stall, bits 1-7 first bumper, bit 8
+            right stall, bits 9-15 second bumper).
         control: setpoint of the heading servo, platform units.
-        flags: FLAGS (bit 0 motors enabled, bits 5-6 stop buttons).
+        flags: FLAGS (bit 0 motors enabled, bits 1-4 sonar arrays, bit 5 STOP button,
+            bit 6 E_STALL, bits 7-8 ledge IRs, bit 9 joystick button, bit 10 charger).
         compass: compass heading, 2-degree units.
         sonars: (number, range) of the new sonar readings.
         grip_state, anport, analog, digin, digout: gripper state, selected analog port,
             its reading, user digital inputs and outputs.
         battery_x10: battery voltage, tenths of a volt (newer firmware), or None.
         charge_state: charger stage, or None.
-        rotvel: rotational velocity, 0.1 deg/s, or None.
+        rotvel: rotational velocity, 0.1 deg/s (counter-clockwise positive), or None.
         fault_flags: internal fault bits, or None.
     """
 
@@ -475,15 +484,21 @@ class PacketReader:
 
 @dataclass(frozen=True)
 class PlatformParams:
-    """Conversion factors of one Pioneer model (its parameter file's values).
+    """Conversion factors of one Pioneer model with the ARCOS (SH) controller: the values
+    of ARIA's ``p3dx-sh.p`` / ``p3at-sh.p`` parameter files.
 
     Attributes:
         model: ``p3dx`` or ``p3at``.
-        subtype: what the robot reports as its subtype in the SYNC2 answer.
+        subtype: the subtype an ARCOS robot reports in its SYNC2 answer, ``p3dx-sh`` /
+            ``p3at-sh`` (a bare ``p3dx`` / ``p3at`` is the older H8 controller, whose
+            DistConvFactor is 0.485 / 0.465 mm per unit: the driver refuses it).
         dist_conv: DistConvFactor, mm per position unit (XPOS, YPOS).
         vel_conv: VelConvFactor, mm/s per wheel-velocity unit.
-        angle_conv: AngleConvFactor, rad per heading unit (THPOS, CONTROL).
-        diff_conv: DiffConvFactor, rad/s per mm/s of right minus left wheel velocity.
+        angle_conv: AngleConvFactor, rad per heading unit (THPOS, CONTROL): 2 pi / 4096
+            (the parameter files round it to 0.001534).
+        diff_conv: DiffConvFactor, the turn rate per wheel speed: rad/s per mm/s of
+            (right - left) / 2, i.e. 2 / (effective track, mm). Firmware that sends ROTVEL
+            makes it unnecessary.
         range_conv: RangeConvFactor, mm per sonar unit.
         vel2_divisor: Vel2Divisor, mm/s per unit of the VEL2 command.
     """
@@ -528,27 +543,37 @@ class PlatformParams:
         """m/s -> wheel-velocity units, rounded."""
         return round(mps * 1000.0 / self.vel_conv)
 
+    def turn_rate(self, left_units: int | float, right_units: int | float) -> float:
+        """Turn rate (rad/s, counter-clockwise positive) from the two wheel velocities
+        (wheel-velocity units), by DiffConvFactor: what a SIP without ROTVEL implies."""
+        mmps = (float(right_units) - float(left_units)) * self.vel_conv
+        return 0.5 * mmps * self.diff_conv
+
+
+ANGLE_UNIT = 2.0 * math.pi / 4096.0
+"""Radians per heading unit: ARCOS reports headings in 4096ths of a turn."""
 
 PLATFORMS: dict[str, PlatformParams] = {
     "p3dx": PlatformParams(
         model="p3dx",
-        subtype="p3dx",
+        subtype="p3dx-sh",
         dist_conv=1.0,
         vel_conv=1.0,
-        angle_conv=0.001534,
+        angle_conv=ANGLE_UNIT,
         diff_conv=0.0056,
     ),
     "p3at": PlatformParams(
         model="p3at",
-        subtype="p3at",
+        subtype="p3at-sh",
         dist_conv=1.0,
         vel_conv=1.0,
-        angle_conv=0.001534,
+        angle_conv=ANGLE_UNIT,
         diff_conv=0.0034,
     ),
 }
-"""The Pioneer 3-DX and 3-AT: positions in mm, velocities in mm/s, headings in 4096ths of
-a turn (AngleConvFactor 0.001534 rad)."""
+"""The Pioneer 3-DX and 3-AT under ARCOS: positions in mm, velocities in mm/s, headings in
+4096ths of a turn, Vel2Divisor 20; DiffConvFactor 0.0056 (DX) and 0.0034 (AT, skid
+steering)."""
 
 
 def platform(model: str) -> PlatformParams:
