@@ -85,6 +85,23 @@ def wrap_angle(angle: ArrayLike) -> NDArray[np.float64] | float:
     return np.mod(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
 
 
+def compose_planar(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Planar pose ``a (x) b``: the (3,) pose (x m, y m, yaw rad) ``b``, given in the frame
+    of pose ``a``, expressed in the frame ``a`` is given in. The yaw is not wrapped."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
+
+
+def invert_planar(a: ArrayLike) -> NDArray[np.float64]:
+    """The (3,) planar pose that undoes ``a``: ``compose_planar(invert_planar(a), a)`` is
+    the identity."""
+    a = np.asarray(a, dtype=float)
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
+
+
 def rotvec2matrix(rotvec: ArrayLike) -> NDArray[np.float64]:
     """(3,) rotation vector, rad -> (3, 3) rotation matrix (Rodrigues' formula)."""
     w = np.asarray(rotvec, dtype=float)

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calib.rotation import rot_z, skew, wrap_angle
+from calib.rotation import compose_planar, invert_planar, rot_z, skew, wrap_angle
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
 
@@ -50,3 +50,23 @@ def test_wrapping_known_angles():
     assert wrap_angle(-math.pi) == -math.pi
     assert wrap_angle(3 * math.pi / 2) == -math.pi / 2
     np.testing.assert_allclose(rot_z(wrap_angle(7.0)), rot_z(7.0), atol=1e-12)
+
+
+_poses = st.tuples(st.floats(-100.0, 100.0), st.floats(-100.0, 100.0), st.floats(-math.pi, math.pi))
+
+
+@given(a=_poses, b=_poses, c=_poses)
+def test_planar_poses_compose_as_homogeneous_transforms(a, b, c):
+    def matrix(p):
+        m = np.eye(3)
+        m[:2, :2] = rot_z(p[2])[:2, :2]
+        m[:2, 2] = p[:2]
+        return m
+
+    ab = compose_planar(a, b)
+    np.testing.assert_allclose(matrix(ab), matrix(a) @ matrix(b), atol=1e-9)
+    np.testing.assert_allclose(
+        compose_planar(compose_planar(a, b), c), compose_planar(a, compose_planar(b, c)), atol=1e-9
+    )
+    np.testing.assert_allclose(compose_planar(invert_planar(a), a), np.zeros(3), atol=1e-9)
+    np.testing.assert_allclose(compose_planar(a, invert_planar(a)), np.zeros(3), atol=1e-9)

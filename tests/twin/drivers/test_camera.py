@@ -15,7 +15,6 @@ import pytest
 
 from twin.drivers.camera import GenICamCamera, OpenCvCamera
 from twin.drivers.clock import WallClock
-from twin.emulators.camera import MjpegServer
 from twin.hal.errors import DeviceLostError, NoFrameError
 
 W, H = 160, 120
@@ -39,22 +38,6 @@ class Counter:
         with self.lock:
             self.made += 1
             return np.full((H, W), level(self.k), np.uint8)
-
-
-@pytest.fixture
-def serve() -> Iterator[Callable[..., MjpegServer]]:
-    servers: list[MjpegServer] = []
-
-    def start(frames: Callable[[], np.ndarray], **kwargs: object) -> MjpegServer:
-        server = MjpegServer(frames, **kwargs)
-        servers.append(server)
-        return server.start()
-
-    try:
-        yield start
-    finally:
-        for server in servers:
-            server.close()
 
 
 @pytest.fixture

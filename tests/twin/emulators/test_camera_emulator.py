@@ -7,7 +7,7 @@ from __future__ import annotations
 import http.client
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
@@ -36,22 +36,6 @@ def gradient() -> np.ndarray:
     u = np.linspace(30, 220, W)
     v = np.linspace(0, 20, H)
     return np.rint(u[None, :] + v[:, None]).astype(np.uint8)
-
-
-@pytest.fixture
-def serve() -> Iterator[Callable[..., MjpegServer]]:
-    servers: list[MjpegServer] = []
-
-    def start(frames: Callable[[], np.ndarray], **kwargs: object) -> MjpegServer:
-        server = MjpegServer(frames, **kwargs)
-        servers.append(server)
-        return server.start()
-
-    try:
-        yield start
-    finally:
-        for server in servers:
-            server.close()
 
 
 def read_part(response: http.client.HTTPResponse) -> tuple[dict[str, str], bytes]:

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
+from calib.rotation import compose_planar, invert_planar
 from twin.drivers.arcos.connection import ArcosPose, PioneerConnection
 from twin.drivers.arcos.protocol import Command
 from twin.hal.devices import MobileBase
@@ -41,16 +42,6 @@ AIM_ANGLE = 0.3
 
 STOP_WAIT = 5.0
 """Rig seconds a drive waits for the robot to report it has stopped, s."""
-
-
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
-
-
-def _inverse(a: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
 
 
 def _relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -120,7 +111,7 @@ class ArcosBase(MobileBase):
     @property
     def _odo2w(self) -> np.ndarray:
         """The ARCOS-to-W transform the anchor makes."""
-        return _compose(self._anchor_w, _inverse(self._anchor_odo))
+        return compose_planar(self._anchor_w, invert_planar(self._anchor_odo))
 
     @property
     def name(self) -> str:
@@ -128,7 +119,7 @@ class ArcosBase(MobileBase):
 
     # -- localisation ---------------------------------------------------------------------------
     def _to_w(self, pose: ArcosPose) -> np.ndarray:
-        return _compose(self._anchor_w, _relative(self._anchor_odo, pose.pose))
+        return compose_planar(self._anchor_w, _relative(self._anchor_odo, pose.pose))
 
     def _reading(self, pose: ArcosPose) -> OdometryReading:
         w = self._to_w(pose)
@@ -232,8 +223,8 @@ class ArcosBase(MobileBase):
                 duration=0.0,
                 message=f"the goal must be finite, got ({g[0]}, {g[1]}) yaw {goal_yaw}",
             )
-        w2odo = _inverse(self._odo2w)
-        local = _compose(w2odo, np.array([g[0], g[1], 0.0 if goal_yaw is None else goal_yaw]))
+        w2odo = invert_planar(self._odo2w)
+        local = compose_planar(w2odo, np.array([g[0], g[1], 0.0 if goal_yaw is None else goal_yaw]))
         local_yaw = None if goal_yaw is None else float(local[2])
         status, message = DriveStatus.REACHED, ""
         try:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from calib.rotation import wrap_angle
+from calib.rotation import compose_planar, invert_planar, wrap_angle
 from twin.hal.devices import Clock, MobileBase
 from twin.hal.readings import DriveResult, DriveStatus, OdometryReading
 from twin.scenario.geometry import inside_obstacle, inside_space
@@ -27,17 +27,6 @@ reached, m."""
 
 BLOCKED_SHORT_OF = 1.5
 """A base that finds its goal blocked stops this far short of it (or where it is), m."""
-
-
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Planar pose a (x) b: b expressed in the frame of pose a."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
-
-
-def _inverse(a: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([-(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]])
 
 
 def _check_pose(x: float, y: float, yaw: float) -> None:
@@ -123,7 +112,7 @@ class RenderBase(_SimBase):
         self._correction = frame.pose(np.zeros(3))
 
     def _believed(self) -> np.ndarray:
-        return _compose(self._correction, self.world.driving.odometry[self._name].pose)
+        return compose_planar(self._correction, self.world.driving.odometry[self._name].pose)
 
     def odometry(self) -> OdometryReading:
         return self._reading(self._believed())
@@ -131,7 +120,7 @@ class RenderBase(_SimBase):
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         _check_pose(x, y, yaw)
         odo = self.world.driving.odometry[self._name].pose
-        self._correction = _compose(np.array([x, y, yaw], dtype=float), _inverse(odo))
+        self._correction = compose_planar(np.array([x, y, yaw], dtype=float), invert_planar(odo))
 
     def drive_to(self, goal_xy: ArrayLike, goal_yaw: float | None = None) -> DriveResult:
         g = np.asarray(goal_xy, dtype=float).reshape(2)
@@ -140,9 +129,9 @@ class RenderBase(_SimBase):
         why = self._blocked(g)
         target = g if not why else self._short_of(self._believed()[:2], g)
         # The goal in the odometry's frame.
-        inv = _inverse(self._correction)
+        inv = invert_planar(self._correction)
         yaw = 0.0 if goal_yaw is None else float(goal_yaw)
-        local = _compose(inv, np.array([target[0], target[1], yaw]))
+        local = compose_planar(inv, np.array([target[0], target[1], yaw]))
         with timed(self.timings, "physics"):
             result = self.world.drive_to(
                 self._name,
@@ -223,8 +212,8 @@ class GeometricBase(_SimBase):
         # Where it really stops: the believed pose mapped through the truth's offset from
         # the belief, plus the stopping error.
         true_now = self.frame.pose(self.world.robot_pose(self._name))
-        offset = _compose(true_now, _inverse(self._belief))
-        truth = _compose(offset, believed)
+        offset = compose_planar(true_now, invert_planar(self._belief))
+        truth = compose_planar(offset, believed)
         truth[:2] += self.stopping.sigma_xy * self.rng.standard_normal(2)
         truth[2] += self.stopping.sigma_yaw * self.rng.standard_normal()
         mj = self.frame.pose_to_mujoco(truth)
