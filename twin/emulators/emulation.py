@@ -30,12 +30,13 @@ from __future__ import annotations
 import contextlib
 import json
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 
 from calib.io.camera_files import camera_to_dict
 from twin.closing import Closing
@@ -152,7 +153,7 @@ class Emulation(Closing):
         path.parent.mkdir(parents=True, exist_ok=True)
         truth = path.with_name(path.stem + ".truth.json")
         write_text_atomic(truth, json.dumps({"cameras": self.truth}, indent=2) + "\n")
-        write_text_atomic(path, to_toml(self.rig_file(truth.name)))
+        write_text_atomic(path, tomli_w.dumps(self.rig_file(truth.name)))
         return path
 
     def close(self) -> None:
@@ -341,36 +342,3 @@ def start_emulation(
         lock=lock,
         renderer=renderer,
     )
-
-
-def to_toml(data: Mapping[str, Any]) -> str:
-    """A rig file's mapping as TOML: top-level values, tables, arrays of tables (the
-    shapes a rig file has)."""
-    lines: list[str] = []
-    tables: list[tuple[str, Mapping[str, Any]]] = []
-    arrays: list[tuple[str, list[Mapping[str, Any]]]] = []
-    for key, value in data.items():
-        if isinstance(value, Mapping):
-            tables.append((key, value))
-        elif isinstance(value, list) and value and all(isinstance(v, Mapping) for v in value):
-            arrays.append((key, value))
-        else:
-            lines.append(f"{key} = {_toml_value(value)}")
-    for key, table in tables:
-        lines += ["", f"[{key}]", *(f"{k} = {_toml_value(v)}" for k, v in table.items())]
-    for key, items in arrays:
-        for item in items:
-            lines += ["", f"[[{key}]]", *(f"{k} = {_toml_value(v)}" for k, v in item.items())]
-    return "\n".join(lines) + "\n"
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"no TOML form for {value!r}")
