@@ -20,13 +20,13 @@ gl-libs:
 $(VENV)/.stamp-run: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[real]"
+	$(PY) -m pip install --quiet -e ".[real,maps]"
 	touch $@
 
 $(VENV)/.stamp-dev: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev,cluster,real]"
+	$(PY) -m pip install --quiet -e ".[dev,cluster,real,maps]"
 	touch $(VENV)/.stamp-run $@
 
 run: $(VENV)/.stamp-run gl-libs

@@ -24,6 +24,7 @@ _COMMANDS = [
     "run",
     "montecarlo",
     "strategies",
+    "site",
     "emulate",
     "devices",
     "replay",

@@ -833,6 +833,23 @@ class SimConfig(Frozen):
     timestep: Annotated[float, Field(ge=2e-4, le=0.01)] = 0.002
 
 
+class SiteInfo(Frozen):
+    """Where a scenario planned from a map (``twin site``) came from.
+
+    Attributes:
+        map: the map file it was planned from (relative to the scenario's folder, or
+            absolute).
+        map_pose: W in the map's frame: the parent's first station (x, y) m and W's x-axis
+            from the map's x-axis, degrees counter-clockwise. A point (x, y) of W is
+            ``(X + x cos a - y sin a, Y + x sin a + y cos a)`` in the map.
+        resolution: the grid the map's blocked floor was laid on as boxes, m.
+    """
+
+    map: Annotated[str, Field(min_length=1, max_length=400)]
+    map_pose: tuple[Coordinate, Coordinate, AngleDeg] = (0.0, 0.0, 0.0)
+    resolution: Annotated[float, Field(gt=0.0, le=10.0)] = 0.1
+
+
 class Scenario(Frozen):
     """A complete scenario. See ``scenarios/paper_hall.toml`` for a documented example.
 
@@ -847,6 +864,8 @@ class Scenario(Frozen):
             ``MAX_PEOPLE``.
         campaign: how the calibration campaign runs.
         faults: faults injected into the simulated devices (none by default).
+        site: where a scenario planned from a map came from, and the map-to-W transform
+            (None for a scenario written by hand).
         source: the file it was loaded from (set by the loader).
     """
 
@@ -864,6 +883,7 @@ class Scenario(Frozen):
     people: tuple[Person, ...] = Field(default=(), max_length=MAX_PEOPLE)
     campaign: CampaignSettings = CampaignSettings()
     faults: Faults = Faults()
+    site: SiteInfo | None = None
     source: str = ""
 
     def without_noise(self) -> Scenario:

@@ -1,0 +1,69 @@
+"""A site's floor: where the robots can drive and what stands in the way, in the map's
+frame, as shapely geometry."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.base import BaseGeometry
+
+
+class MapError(ValueError):
+    """A map that cannot be used: the message names the file, the element (a layer, a
+    pixel value, a camera) and what was expected.
+
+    Attributes:
+        file: the map file (or ``"<map>"``).
+    """
+
+    def __init__(self, file: str | Path, message: str) -> None:
+        self.file = str(file)
+        super().__init__(f"{self.file}: {message}")
+
+
+@dataclass(frozen=True)
+class MapObstacle:
+    """Something that stands on the floor: a wall, a pillar, a counter.
+
+    Attributes:
+        footprint: its outline on the floor, map frame, m.
+        height: how high it stands above the floor, m (``math.inf`` for walls that reach
+            the ceiling).
+        name: where it came from (a DXF layer, ``occupied`` cells, a mesh's section).
+    """
+
+    footprint: Polygon
+    height: float = math.inf
+    name: str = "obstacle"
+
+
+@dataclass(frozen=True)
+class FloorMap:
+    """A site's floor in the map's frame (x, y in m, z up from the floor).
+
+    Attributes:
+        free: the floor the robots may drive on (the robots' own clearance not yet taken
+            off), a Polygon or MultiPolygon.
+        obstacles: what stands on the floor, with heights (for lines of sight).
+        height: the ceiling's height above the floor, m.
+        source: the file it was read from.
+    """
+
+    free: Polygon | MultiPolygon
+    obstacles: tuple[MapObstacle, ...] = ()
+    height: float = 3.0
+    source: str = "<map>"
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(min x, min y, max x, max y) of the free floor, m."""
+        return self.free.bounds
+
+    def reachable(self, clearance: float) -> BaseGeometry:
+        """Where a robot's centre may be with ``clearance`` m from everything (the free
+        floor shrunk by it)."""
+        return self.free.buffer(-clearance)

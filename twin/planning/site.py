@@ -1,0 +1,488 @@
+"""A campaign planned on a map: the scenario ``twin site`` writes.
+
+From a floor map (:mod:`twin.planning.maps`) and the cameras as installed (their
+approximate poses and nominal intrinsics, in the map's frame), the planner:
+
+1. takes the parent's start (given, or the reachable place nearest the middle of the
+   cameras' floor views, heading along the map's x-axis) as the world frame W;
+2. lays the map's blocked floor as boxes in W (:mod:`twin.planning.boxes`);
+3. chooses each camera's station (:mod:`twin.planning.stations`);
+4. orders the visits by the shortest tour over the stations (:mod:`twin.planning.tour`)
+   unless the user gives the order, with a return to the start if asked;
+5. routes the parent between them by shortest paths with the CPS formation's clearance
+   (:mod:`twin.planning.route`);
+6. places the children beside the start.
+
+The result is an ordinary scenario (a mapping, validated by the scenario loader) with a
+``[site]`` section that keeps the map and the map-to-W transform.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from pydantic import BaseModel
+from shapely.geometry import LineString, Point
+from shapely.geometry.base import BaseGeometry
+
+from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
+from twin.planning.floor_map import FloorMap, MapError
+from twin.planning.frames import MapPose
+from twin.planning.route import NoPathError, RouteGraph
+from twin.planning.stations import NoStationError, Station, choose_station
+from twin.planning.tour import order_visits
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
+from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
+
+T = TypeVar("T", bound=BaseModel)
+
+FORMATION_CLEARANCE = PIONEER3AT.radius + 0.35
+"""Clearance the parent's route keeps from everything, m: the parent's radius and room
+for a child beside it in the CPS formation's turns."""
+
+STATION_CLEARANCE = 1.6
+"""Clearance a station keeps from everything, m: the children stand beside and ahead of
+the parent there (the formation's sideways offset, a child's radius, and a margin); where
+no floor is that wide, a station keeps the route's clearance."""
+
+STATION_NEED = 0.5
+"""Least fraction of a camera's floor view a station must see (the scenario's default
+``calibration.min_visible_fraction``)."""
+
+CHILD_OFFSETS = ((1.5, 1.5), (1.5, -1.5), (-1.5, 1.5), (-1.5, -1.5), (2.5, 1.0), (2.5, -1.0))
+"""Where the children may start, (x, y) m from the parent in W; the first two that fit."""
+
+CAMERA_KEYS = (
+    "name",
+    "position",
+    "view_direction",
+    "f",
+    "cx",
+    "cy",
+    "kappa1",
+    "sx",
+    "image_size",
+    "opencv_distortion",
+    "sensor",
+    "led_centroid_px",
+)
+
+
+@dataclass(frozen=True)
+class SitePlan:
+    """A planned campaign on a map.
+
+    Attributes:
+        scenario: the scenario as a mapping (TOML-ready).
+        pose: W in the map's frame.
+        space: the room and its boxes in W.
+        stations: each camera's station, by camera name.
+        order: the visits' cameras, in order.
+        route: (K, 2) the parent's route in W, m.
+        floor: the map.
+    """
+
+    scenario: dict[str, Any]
+    pose: MapPose
+    space: BoxedSpace
+    stations: dict[str, Station]
+    order: tuple[str, ...]
+    route: NDArray[np.float64]
+    floor: FloorMap
+
+
+def read_cameras(path: str | Path) -> list[dict[str, Any]]:
+    """The cameras file: a YAML list (or mapping with ``cameras``), or TOML
+    ``[[cameras]]``, each with a scenario camera's keys, in the map's frame (``position``'s
+    z is the height above the floor, m).
+
+    Raises:
+        MapError: the file cannot be read, or a camera is not a table of known keys.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+        raw: Any = tomllib.loads(text) if path.suffix == ".toml" else yaml.safe_load(text)
+    except (OSError, ValueError, yaml.YAMLError) as exc:
+        raise MapError(path, f"cannot read the cameras: {exc}") from None
+    if isinstance(raw, Mapping):
+        raw = raw.get("cameras")
+    if not isinstance(raw, list) or not raw:
+        raise MapError(path, "expected a list of cameras (YAML list, or TOML [[cameras]])")
+    out = []
+    for k, cam in enumerate(raw):
+        where = f"camera {k}" + (f" ({cam.get('name')!r})" if isinstance(cam, Mapping) else "")
+        if not isinstance(cam, Mapping):
+            raise MapError(path, f"{where}: expected a table of camera keys, got {cam!r}")
+        unknown = sorted(set(cam) - set(CAMERA_KEYS))
+        if unknown:
+            raise MapError(path, f"{where}: unknown keys {unknown}; expected {CAMERA_KEYS}")
+        for key in ("name", "position", "view_direction", "f", "cx", "cy", "image_size"):
+            if key not in cam:
+                raise MapError(path, f"{where}: the key {key!r} is missing")
+        out.append(dict(cam))
+    return out
+
+
+def plan_site(
+    floor: FloorMap,
+    cameras: Sequence[Mapping[str, Any]],
+    *,
+    name: str = "site",
+    start: tuple[float, float, float] | None = None,
+    visits: Sequence[str] | None = None,
+    return_to_start: bool = False,
+    resolution: float = DEFAULT_RESOLUTION,
+    map_file: str = "",
+    seed: int = 1,
+) -> SitePlan:
+    """Plan the campaign of ``cameras`` on ``floor`` (see the module).
+
+    Args:
+        floor: the map. cameras: the cameras file's entries, map frame.
+        name: the scenario's name. start: (x m, y m, yaw rad) of the parent's start in the
+            map (default: chosen). visits: the cameras in the order to calibrate them (a
+            camera may come twice, as in the paper's 1-2-3-2-1); default: each camera once,
+            in the shortest tour's order. return_to_start: end the route at the start.
+        resolution: the boxes' grid, m. map_file: the map's path as the scenario keeps it.
+        seed: the scenario's seed.
+
+    Raises:
+        MapError: a camera outside the map, no station for a camera, no path between two
+            stations, a start off the floor; the message names it.
+    """
+    names = [str(c["name"]) for c in cameras]
+    if len(set(names)) != len(names):
+        raise MapError(floor.source, f"camera names repeat: {names}")
+    for cam in cameras:
+        xy = np.asarray(cam["position"], dtype=float)[:2]
+        x0, y0, x1, y1 = floor.bounds
+        if not (x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1):
+            raise MapError(
+                floor.source,
+                f"camera {cam['name']!r} at {xy.tolist()} lies outside the map "
+                f"(x {x0:.2f} to {x1:.2f}, y {y0:.2f} to {y1:.2f} m)",
+            )
+    wanted = list(visits) if visits is not None else None
+    if wanted is not None:
+        unknown = sorted(set(wanted) - set(names))
+        if unknown:
+            raise MapError(floor.source, f"visits name unknown cameras {unknown}; known {names}")
+    parent_free = floor.reachable(FORMATION_CLEARANCE)
+    if parent_free.is_empty:
+        raise MapError(floor.source, "no floor is wide enough for the robots")
+    roomy = floor.reachable(STATION_CLEARANCE)
+    station_free = roomy if not roomy.is_empty else parent_free
+    floor_z = -INSTRUMENT_HEIGHT
+    chosen = list(dict.fromkeys(wanted if wanted is not None else names))
+    if start is None:
+        # Stations first, in the map's frame; then the start just before the first of the
+        # best open tour over them, so that the route runs on rather than back and forth.
+        in_map = _stations(floor, cameras, chosen, MapPose(), station_free, floor_z, resolution)
+        graph = RouteGraph(parent_free)
+        first, second = _first_two(graph, in_map, wanted, floor.source)
+        pose = MapPose(*_lead_in(first, second, parent_free), 0.0)
+        stations = {
+            k: dataclasses.replace(
+                st, xy=pose.map2world(st.xy), view_centre=pose.map2world(st.view_centre)
+            )
+            for k, st in in_map.items()
+        }
+    else:
+        x, y, yaw = (float(v) for v in start)
+        if not parent_free.contains(Point(x, y)):
+            raise MapError(
+                floor.source,
+                f"the start ({x:.2f}, {y:.2f}) is not on the floor with the robots' "
+                f"clearance ({FORMATION_CLEARANCE:.2f} m from every wall and obstacle)",
+            )
+        pose = MapPose(x, y, yaw)
+        stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution)
+    boxed = boxed_space(floor, pose, resolution)
+    cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
+    reach_w = pose.geometry2world(parent_free)
+    graph = RouteGraph(reach_w)
+    points = [np.zeros(2), *(stations[c].xy for c in stations)]
+    keys = list(stations)
+    try:
+        dist = np.array([[graph.length(a, b) for b in points] for a in points])
+    except NoPathError as exc:
+        raise MapError(floor.source, f"no free path between two stations: {exc}") from None
+    if wanted is None:
+        order = order_visits(dist, len(points), start=0, return_to_start=return_to_start)
+        sequence = [keys[i - 1] for i in order if i != 0]
+    else:
+        sequence = wanted
+    route, arrivals = _route(graph, [stations[c].xy for c in sequence], return_to_start)
+    if not return_to_start:
+        route = _run_out(route, reach_w)
+    children = _children(floor, pose)
+    scenario = _scenario(
+        name=name,
+        seed=seed,
+        space=boxed,
+        floor_z=floor_z,
+        cameras=[cams_w[n] for n in names],
+        children=children,
+        route=route,
+        visits=[
+            (cam, stations[cam].xy, heading)
+            for cam, heading in zip(sequence, arrivals, strict=True)
+        ],
+        site={
+            "map": map_file or floor.source,
+            "map_pose": [pose.x, pose.y, math.degrees(pose.yaw)],
+            "resolution": resolution,
+        },
+    )
+    return SitePlan(scenario, pose, boxed, stations, tuple(sequence), route, floor)
+
+
+def _stations(
+    floor: FloorMap,
+    cameras: Sequence[Mapping[str, Any]],
+    chosen: Sequence[str],
+    pose: MapPose,
+    station_free: BaseGeometry,
+    floor_z: float,
+    resolution: float,
+) -> dict[str, Station]:
+    """Each chosen camera's station in the frame ``pose`` makes W."""
+    boxed = boxed_space(floor, pose, resolution)
+    space = _validated(Space, _space_dict(boxed, floor_z))
+    by_name = {str(c["name"]): c for c in cameras}
+    marker = MarkerConfig()
+    ts = Noise().total_station
+    where = pose.geometry2world(station_free)
+    out: dict[str, Station] = {}
+    for name in chosen:
+        camera = _validated(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
+        try:
+            out[name] = choose_station(
+                name,
+                camera,
+                space,
+                where,
+                instrument_z=floor_z + INSTRUMENT_HEIGHT,
+                prism_height=float(np.mean([c[2] for c in marker.cubes])),
+                instrument_range=(ts.range_min, ts.range_max),
+                need=STATION_NEED,
+            )
+        except NoStationError as exc:
+            raise MapError(floor.source, str(exc)) from None
+    return out
+
+
+def _first_two(
+    graph: RouteGraph,
+    stations: Mapping[str, Station],
+    wanted: Sequence[str] | None,
+    source: str,
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """The first two stations of the visits (given, or the best open tour's from any
+    start), map frame."""
+    keys = list(stations)
+    if wanted is not None:
+        order = list(dict.fromkeys(wanted))
+    elif len(keys) == 1:
+        order = keys
+    else:
+        points = [stations[k].xy for k in keys]
+        try:
+            between = np.array([[graph.length(a, b) for b in points] for a in points])
+        except NoPathError as exc:
+            raise MapError(source, f"no free path between two stations: {exc}") from None
+        # A node at no distance from every station: the best open tour from it starts
+        # wherever the best open path over the stations does.
+        n = len(points) + 1
+        dist = np.zeros((n, n))
+        dist[1:, 1:] = between
+        order = [keys[i - 1] for i in order_visits(dist, n, start=0) if i != 0]
+    first = stations[order[0]].xy
+    second = stations[order[1]].xy if len(order) > 1 else None
+    return first, second
+
+
+LEAD_IN = 3.0
+"""How far before the first station the parent starts, m (away from the second)."""
+
+
+def _lead_in(
+    first: NDArray[np.float64], second: NDArray[np.float64] | None, reachable: BaseGeometry
+) -> tuple[float, float]:
+    """The start: :data:`LEAD_IN` before ``first``, on the side away from ``second``, where
+    the floor allows (else nearer, else at ``first``)."""
+    if second is None or np.linalg.norm(second - first) < 1e-9:
+        away = np.array([-1.0, 0.0])
+    else:
+        away = (first - second) / np.linalg.norm(first - second)
+    for back in (LEAD_IN, 0.75 * LEAD_IN, 0.5 * LEAD_IN):
+        for turn in (0.0, 0.4, -0.4, 0.8, -0.8):
+            c, s = math.cos(turn), math.sin(turn)
+            d = np.array([c * away[0] - s * away[1], s * away[0] + c * away[1]])
+            xy = first + back * d
+            if reachable.covers(LineString([first, xy])):
+                return float(xy[0]), float(xy[1])
+    return float(first[0]), float(first[1])
+
+
+def _camera_in_world(cam: Mapping[str, Any], pose: MapPose, floor_z: float) -> dict[str, Any]:
+    out = dict(cam)
+    p = np.asarray(cam["position"], dtype=float)
+    d = np.asarray(cam["view_direction"], dtype=float)
+    xy = pose.map2world(p[:2])
+    dxy = pose.direction2world(d[:2])
+    out["position"] = [float(xy[0]), float(xy[1]), float(floor_z + p[2])]
+    out["view_direction"] = [float(dxy[0]), float(dxy[1]), float(d[2])]
+    return out
+
+
+def _validated(model: type[T], data: Mapping[str, Any]) -> T:
+    """``data`` as a scenario section, validated as the scenario loader does (strictly,
+    lists read as tuples)."""
+    return model.model_validate_json(json.dumps(data), strict=True)
+
+
+def _space_dict(space: BoxedSpace, floor_z: float) -> dict[str, Any]:
+    return {
+        "size": list(space.size),
+        "origin": list(space.origin),
+        "floor_z": floor_z,
+        "obstacles": [_obstacle_dict(k, b) for k, b in enumerate(space.boxes)],
+    }
+
+
+def _obstacle_dict(k: int, box: Any) -> dict[str, Any]:
+    return {
+        "name": f"map_{k}",
+        "center": [float(box.center[0]), float(box.center[1])],
+        "size": [float(box.size[0]), float(box.size[1]), float(box.height)],
+    }
+
+
+def _route(
+    graph: RouteGraph, stations: Sequence[NDArray], return_to_start: bool
+) -> tuple[NDArray[np.float64], list[float]]:
+    """The route from W's origin through ``stations`` (and back), and the heading at each
+    station's arrival, deg."""
+    targets = [*stations, np.zeros(2)] if return_to_start else list(stations)
+    here = np.zeros(2)
+    points = [here]
+    arrivals: list[float] = []
+    for k, goal in enumerate(targets):
+        path = graph.path(here, goal)
+        for p in path[1:]:
+            if np.linalg.norm(p - points[-1]) > 1e-6:
+                points.append(np.asarray(p, dtype=float))
+        if k < len(stations):
+            arrivals.append(_heading(points))
+        here = np.asarray(goal, dtype=float)
+    if len(points) == 1:  # every station at the start: a route needs two points
+        points.append(points[0] + (0.5, 0.0))
+    return np.array(points), arrivals
+
+
+RUN_OUT = 6.0
+"""Length of straight route past the last station, m: the children stand up to about 5 m
+ahead of the parent's station along the route (:mod:`twin.campaign.plan.formation`), also
+at the last one."""
+
+
+def _run_out(route: NDArray[np.float64], reachable: BaseGeometry) -> NDArray[np.float64]:
+    """``route`` with a straight stretch past its end: on in the direction of arrival if
+    there is room, else the free direction nearest it (the longest free one if none is
+    free for :data:`RUN_OUT`)."""
+    end = route[-1]
+    arrival = math.atan2(*(route[-1] - route[-2])[::-1]) if len(route) > 1 else 0.0
+    turns = [0.0]
+    for k in range(1, 9):
+        turns += [k * math.pi / 8, -k * math.pi / 8]
+    best, best_len = None, 0.0
+    for turn in turns:
+        heading = arrival + turn
+        step = np.array([math.cos(heading), math.sin(heading)])
+        free = _free_length(reachable, end, step, RUN_OUT)
+        if free >= RUN_OUT:
+            return np.vstack([route, end + RUN_OUT * step])
+        if free > best_len:
+            best, best_len = step, free
+    if best is None or best_len < 0.5:
+        return route
+    return np.vstack([route, end + best_len * best])
+
+
+def _free_length(reachable: BaseGeometry, start: NDArray, step: NDArray, most: float) -> float:
+    """How far from ``start`` along ``step`` (a unit vector) stays in ``reachable``, up to
+    ``most``, m (in 0.25 m steps)."""
+    length = 0.0
+    while length < most:
+        nxt = min(length + 0.25, most)
+        if not reachable.covers(LineString([start, start + nxt * step])):
+            break
+        length = nxt
+    return length
+
+
+def _heading(points: Sequence[NDArray]) -> float:
+    if len(points) < 2:
+        return 0.0
+    d = points[-1] - points[-2]
+    return float(np.degrees(np.arctan2(d[1], d[0])))
+
+
+def _children(floor: FloorMap, pose: MapPose) -> list[NDArray[np.float64]]:
+    free = pose.geometry2world(floor.reachable(PIONEER3DX.radius + 0.1))
+    out: list[NDArray[np.float64]] = []
+    for offset in CHILD_OFFSETS:
+        xy = np.asarray(offset, dtype=float)
+        if free.contains(Point(*xy)) and all(np.linalg.norm(xy - o) > 1.0 for o in out):
+            out.append(xy)
+        if len(out) == 2:
+            return out
+    raise MapError(floor.source, "no room beside the start for the two children")
+
+
+def _scenario(
+    *,
+    name: str,
+    seed: int,
+    space: BoxedSpace,
+    floor_z: float,
+    cameras: list[dict[str, Any]],
+    children: list[NDArray],
+    route: NDArray,
+    visits: list[tuple[str, NDArray, float]],
+    site: dict[str, Any],
+) -> dict[str, Any]:
+    return {
+        "name": name,
+        "description": f"Planned from the map {site['map']}: {len(cameras)} cameras.",
+        "seed": seed,
+        "space": _space_dict(space, floor_z),
+        "cameras": cameras,
+        "robots": {
+            "parent": {"name": "parent", "model": "pioneer3at", "start_xy": [0.0, 0.0]},
+            "children": [
+                {"name": f"child{k + 1}", "model": "pioneer3dx", "start_xy": c.tolist()}
+                for k, c in enumerate(children)
+            ],
+        },
+        "route": {"waypoints": route.tolist()},
+        "calibration": {
+            "visits": [
+                {"camera": cam, "station": xy.tolist(), "yaw_deg": heading}
+                for cam, xy, heading in visits
+            ]
+        },
+        "site": site,
+    }

@@ -1,0 +1,126 @@
+"""Where the parent stands for each camera: a station from which the total station sees
+the child anywhere in the camera's floor view, reachable with the parent's clearance.
+
+Candidates lie on a grid over the reachable floor, within a band of distances from the
+camera's floor view; each is scored by :func:`twin.scenario.visibility.station_visibility`
+(the fraction of the view's floor whose prisms the instrument sees, in range and clear of
+obstacles), the same test the scenario's validation applies to a station. The station is
+the candidate that sees the most, the nearest to a preferred distance from the view among
+equals (the paper's stations stand 4-8 m from their cameras' views).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from calib.camera import TsaiCamera
+from twin.scenario.geometry import floor_view
+from twin.scenario.schema import Space
+from twin.scenario.visibility import station_visibility
+
+GRID = 0.5
+"""Spacing of the candidate stations, m."""
+
+NEAREST, FARTHEST = 2.0, 12.0
+"""Band of distances from the view's centre in which stations are sought, m."""
+
+PREFERRED = 5.0
+"""Distance from the view's centre a station is preferred at among equals, m."""
+
+SEES_EQUALLY = 0.02
+"""Two candidates whose visible fractions differ by less than this see equally well."""
+
+
+@dataclass(frozen=True)
+class Station:
+    """A camera's station.
+
+    Attributes:
+        camera: the camera's name. xy: (2,) the station in W, m.
+        visible: the fraction of the camera's floor view the instrument sees from it.
+        view_centre: (2,) the centre of the camera's floor view in W, m.
+    """
+
+    camera: str
+    xy: NDArray[np.float64]
+    visible: float
+    view_centre: NDArray[np.float64]
+
+
+class NoStationError(ValueError):
+    """No reachable place sees enough of a camera's view: the message names the camera,
+    the best fraction found and where."""
+
+
+def choose_station(
+    camera_name: str,
+    camera: TsaiCamera,
+    space: Space,
+    reachable: BaseGeometry,
+    *,
+    instrument_z: float,
+    prism_height: float,
+    instrument_range: tuple[float, float],
+    need: float,
+    grid: float = GRID,
+) -> Station:
+    """The station of one camera (see the module).
+
+    Args:
+        camera_name: its name. camera: its nominal model in W.
+        space: the scenario's space (the blocked boxes hide the view).
+        reachable: where the parent's centre may stand, W.
+        instrument_z: the instrument's height in W, m. prism_height: the prisms' height
+            above the floor, m. instrument_range: the instrument's (least, greatest)
+            distance, m.
+        need: the least visible fraction a station must reach.
+        grid: candidates' spacing, m.
+
+    Raises:
+        NoStationError: no candidate reaches ``need``.
+    """
+    view = floor_view(camera, space.floor_z, max_range=60.0)
+    if len(view) == 0:
+        raise NoStationError(f"camera {camera_name!r} sees no floor")
+    centre = view[:, :2].mean(axis=0)
+    candidates = _candidates(reachable, centre, grid)
+    best: Station | None = None
+    best_key = (-1.0, 0.0)
+    for xy in candidates:
+        frac = station_visibility(space, camera, xy, instrument_z, prism_height, instrument_range)
+        key = (
+            round(frac / SEES_EQUALLY),
+            -abs(float(np.linalg.norm(xy - centre)) - PREFERRED),
+        )
+        if key > best_key:
+            best_key = key
+            best = Station(camera_name, xy, frac, centre)
+    if best is None or best.visible < need:
+        found = (
+            "no reachable place near it"
+            if best is None
+            else f"at best {100 * best.visible:.0f} % (from {np.round(best.xy, 2).tolist()})"
+        )
+        raise NoStationError(
+            f"no station sees {100 * need:.0f} % of camera {camera_name!r}'s floor view: "
+            f"{found}; is the camera placed and aimed as in the map's frame?"
+        )
+    return best
+
+
+def _candidates(reachable: BaseGeometry, centre: NDArray, grid: float) -> NDArray[np.float64]:
+    """(K, 2) grid points of ``reachable`` within the band around ``centre``."""
+    xs = np.arange(centre[0] - FARTHEST, centre[0] + FARTHEST + grid / 2, grid)
+    ys = np.arange(centre[1] - FARTHEST, centre[1] + FARTHEST + grid / 2, grid)
+    gx, gy = np.meshgrid(xs, ys)
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    d = np.linalg.norm(pts - centre, axis=1)
+    pts = pts[(d >= NEAREST) & (d <= FARTHEST)]
+    if len(pts) == 0:
+        return pts
+    return pts[shapely.contains_xy(reachable, pts[:, 0], pts[:, 1])]
