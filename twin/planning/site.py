@@ -50,7 +50,7 @@ FORMATION_CLEARANCE = PIONEER3AT.radius + 0.35
 """Clearance the parent's route keeps from everything, m: the parent's radius and room
 for a child beside it in the CPS formation's turns."""
 
-STATION_CLEARANCE = 1.6
+STATION_CLEARANCE = 1.5
 """Clearance a station keeps from everything, m: the children stand beside and ahead of
 the parent there (the formation's sideways offset, a child's radius, and a margin); where
 no floor is that wide, a station keeps the route's clearance."""
@@ -181,8 +181,7 @@ def plan_site(
     parent_free = floor.reachable(FORMATION_CLEARANCE)
     if parent_free.is_empty:
         raise MapError(floor.source, "no floor is wide enough for the robots")
-    roomy = floor.reachable(STATION_CLEARANCE)
-    station_free = roomy if not roomy.is_empty else parent_free
+    station_free = (floor.reachable(STATION_CLEARANCE), parent_free)
     floor_z = -INSTRUMENT_HEIGHT
     chosen = list(dict.fromkeys(wanted if wanted is not None else names))
     if start is None:
@@ -211,7 +210,7 @@ def plan_site(
     boxed = boxed_space(floor, pose, resolution)
     cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
-    graph = RouteGraph(reach_w)
+    graph = _route_graph(pose.geometry2world(floor.reachable(STATION_CLEARANCE)), reach_w, stations)
     points = [np.zeros(2), *(stations[c].xy for c in stations)]
     keys = list(stations)
     try:
@@ -248,38 +247,58 @@ def plan_site(
     return SitePlan(scenario, pose, boxed, stations, tuple(sequence), route, floor)
 
 
+def _route_graph(
+    roomy: BaseGeometry, reachable: BaseGeometry, stations: Mapping[str, Station]
+) -> RouteGraph:
+    """The graph the route is planned on: the roomy floor (the route keeps to the middle of
+    corridors, where the instrument sees the children around a corner) when it holds the
+    start and every station in one piece, else every floor the parent can reach."""
+    if not roomy.is_empty:
+        graph = RouteGraph(roomy)
+        regions = {graph.region_of(np.zeros(2))}
+        regions |= {graph.region_of(st.xy) for st in stations.values()}
+        if len(regions) == 1 and None not in regions:
+            return graph
+    return RouteGraph(reachable)
+
+
 def _stations(
     floor: FloorMap,
     cameras: Sequence[Mapping[str, Any]],
     chosen: Sequence[str],
     pose: MapPose,
-    station_free: BaseGeometry,
+    station_free: tuple[BaseGeometry, BaseGeometry],
     floor_z: float,
     resolution: float,
 ) -> dict[str, Station]:
-    """Each chosen camera's station in the frame ``pose`` makes W."""
+    """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
+    (``station_free[0]``) where one there sees enough, else on the floor the parent can
+    reach (``station_free[1]``)."""
     boxed = boxed_space(floor, pose, resolution)
     space = _validated(Space, _space_dict(boxed, floor_z))
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
     ts = Noise().total_station
-    where = pose.geometry2world(station_free)
+    wheres = [pose.geometry2world(g) for g in station_free if not g.is_empty]
     out: dict[str, Station] = {}
     for name in chosen:
         camera = _validated(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
-        try:
-            out[name] = choose_station(
-                name,
-                camera,
-                space,
-                where,
-                instrument_z=floor_z + INSTRUMENT_HEIGHT,
-                prism_height=float(np.mean([c[2] for c in marker.cubes])),
-                instrument_range=(ts.range_min, ts.range_max),
-                need=STATION_NEED,
-            )
-        except NoStationError as exc:
-            raise MapError(floor.source, str(exc)) from None
+        for k, where in enumerate(wheres):
+            try:
+                out[name] = choose_station(
+                    name,
+                    camera,
+                    space,
+                    where,
+                    instrument_z=floor_z + INSTRUMENT_HEIGHT,
+                    prism_height=float(np.mean([c[2] for c in marker.cubes])),
+                    instrument_range=(ts.range_min, ts.range_max),
+                    need=STATION_NEED,
+                )
+                break
+            except NoStationError as exc:
+                if k == len(wheres) - 1:
+                    raise MapError(floor.source, str(exc)) from None
     return out
 
 

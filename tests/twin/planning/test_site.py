@@ -256,3 +256,24 @@ def test_the_environment_runs_on_a_planned_site(site):
     assert steps > 0
     # The paper's policy in the environment calibrates both cameras of the planned site.
     assert sorted(info["camera_errors_mm"]) == ["cam1", "cam2"]
+
+
+def test_the_shipped_hospital_floor_calibrates_all_its_cameras(tmp_path):
+    root = Path(__file__).resolve().parents[3]
+    from twin.planning.sample_floor import write_floor
+
+    # The shipped map and cameras are what the generator makes.
+    write_floor(tmp_path / "floor", 30)
+    shipped = root / "scenarios" / "hospital_floor"
+    assert (tmp_path / "floor" / "cameras.yaml").read_text() == (
+        shipped / "cameras.yaml"
+    ).read_text()
+    made = cv2.imread(str(tmp_path / "floor" / "map.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(made, cv2.imread(str(shipped / "map.png"), cv2.IMREAD_UNCHANGED))
+    sc = load_scenario(root / "scenarios" / "hospital_floor.toml")
+    assert len(sc.cameras) == 30
+    route = np.asarray(sc.route.waypoints)
+    assert np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)) >= 600.0
+    results = run_scenario(sc, tmp_path / "run", fidelity="geometric", report=False)
+    assert len(results["calibrations"]) == 30
+    assert not results["skipped_visits"]
