@@ -7,12 +7,13 @@ import math
 from pathlib import Path
 
 import numpy as np
+import shapely
 from rich.console import Console
 from rich.table import Table
 
 from twin.outputs import check_file_target
 from twin.scenario import Scenario, ScenarioError, load_scenario
-from twin.scenario.geometry import floor_view_corners, polygon_area
+from twin.scenario.geometry import floor_view_corners
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -124,7 +125,7 @@ def print_summary(sc: Scenario, model: object, console: Console) -> None:
             f"{c.f:g}",
             f"{c.cx:g}, {c.cy:g}",
             view,
-            f"{polygon_area(corners):.1f}",
+            f"{shapely.Polygon(corners).area if len(corners) >= 3 else 0.0:.1f}",
         )
     console.print(cams)
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -81,37 +82,29 @@ def no_data(ax: Axes, text: str) -> None:
 def clip_polygon(
     polygon: NDArray[np.float64], x_range: Sequence[float], y_range: Sequence[float]
 ) -> NDArray[np.float64]:
-    """Clip a polygon to an axis-aligned rectangle (Sutherland-Hodgman).
+    """Clip a polygon to an axis-aligned rectangle (shapely's intersection).
 
     Args:
         polygon: (K, 2) vertices in order, m.
         x_range, y_range: (min, max) of the rectangle, m.
 
     Returns:
-        (M, 2) vertices of the clipped polygon (M may be 0).
+        (M, 2) vertices of the clipped polygon, without the closing repeat (M may be 0).
     """
-    pts = [tuple(p) for p in np.asarray(polygon, dtype=float).reshape(-1, 2)]
-    edges = (
-        (0, x_range[0], 1.0),
-        (0, x_range[1], -1.0),
-        (1, y_range[0], 1.0),
-        (1, y_range[1], -1.0),
+    pts = np.asarray(polygon, dtype=float).reshape(-1, 2)
+    if len(pts) < 3:
+        return np.zeros((0, 2))
+    clipped = (
+        shapely.Polygon(pts)
+        .buffer(0)
+        .intersection(shapely.box(x_range[0], y_range[0], x_range[1], y_range[1]))
     )
-    for axis, bound, sign in edges:
-        if not pts:
-            break
-        out: list[tuple[float, float]] = []
-        for i, cur in enumerate(pts):
-            prev = pts[i - 1]
-            cur_in = sign * (cur[axis] - bound) >= 0
-            prev_in = sign * (prev[axis] - bound) >= 0
-            if cur_in != prev_in:
-                t = (bound - prev[axis]) / (cur[axis] - prev[axis])
-                out.append((prev[0] + t * (cur[0] - prev[0]), prev[1] + t * (cur[1] - prev[1])))
-            if cur_in:
-                out.append(cur)
-        pts = out
-    return np.asarray(pts, dtype=float).reshape(-1, 2)
+    if clipped.is_empty or clipped.geom_type != "Polygon":
+        parts = [g for g in getattr(clipped, "geoms", []) if g.geom_type == "Polygon"]
+        if not parts:
+            return np.zeros((0, 2))
+        clipped = max(parts, key=lambda g: g.area)
+    return np.asarray(clipped.exterior.coords, dtype=float)[:-1]
 
 
 def obstacle_corners(obstacle: Obstacle) -> NDArray[np.float64]:

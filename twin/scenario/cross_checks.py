@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import numpy as np
+import shapely
 
 from twin.scenario.errors import ScenarioIssue
 from twin.scenario.geometry import (
@@ -29,7 +30,6 @@ from twin.scenario.geometry import (
     obstacles_near,
     polyline_points,
     rectangle_corners,
-    rectangles_gap,
 )
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PLATFORMS
 from twin.scenario.schema import Scenario
@@ -260,10 +260,10 @@ def _check_robots(sc: Scenario) -> list[ScenarioIssue]:
         rectangle_corners(r.start_xy, (r.platform.length, r.platform.width), r.start_yaw)
         for r in robots
     ]
+    shapes = [shapely.Polygon(f) for f in feet]
     for j in range(1, len(robots)):
         for i in range(j):
-            gap = rectangles_gap(feet[i], feet[j])
-            if gap < START_GAP:
+            if shapes[i].distance(shapes[j]) < START_GAP:
                 issues.append(
                     ScenarioIssue(
                         f"robots.children[{j - 1}].start_xy",
@@ -296,15 +296,20 @@ def _check_obstacles(sc: Scenario) -> list[ScenarioIssue]:
     return issues
 
 
+def _overlap(a: shapely.Polygon, b: shapely.Polygon) -> bool:
+    """Whether two footprints share area (touching is not overlapping)."""
+    return a.intersection(b).area > 0.0
+
+
 def _check_patches(sc: Scenario) -> list[ScenarioIssue]:
     issues = []
     obstacles = [
         (ob, rectangle_corners(ob.center, ob.size[:2], ob.yaw)) for ob in sc.space.obstacles
     ]
-    patches = [rectangle_corners(p.center, p.size) for p in sc.space.floor_patches]
+    patches = [shapely.Polygon(rectangle_corners(p.center, p.size)) for p in sc.space.floor_patches]
     for i, patch in enumerate(sc.space.floor_patches):
         for ob, corners in obstacles:
-            if rectangles_gap(patches[i], corners) < 0.0:
+            if _overlap(patches[i], shapely.Polygon(corners)):
                 issues.append(
                     ScenarioIssue(
                         f"space.floor_patches[{i}].center",
@@ -314,7 +319,7 @@ def _check_patches(sc: Scenario) -> list[ScenarioIssue]:
                     )
                 )
         for k in range(i):
-            if rectangles_gap(patches[i], patches[k]) < 0.0:
+            if _overlap(patches[i], patches[k]):
                 other = sc.space.floor_patches[k].name
                 issues.append(
                     ScenarioIssue(

@@ -62,24 +62,6 @@ def rectangle_corners(center: ArrayLike, size: ArrayLike, yaw: float = 0.0) -> N
     return local @ np.array([[c, s], [-s, c]]) + np.asarray(center, dtype=float)
 
 
-def rectangles_gap(a: ArrayLike, b: ArrayLike) -> float:
-    """Separation of two convex polygons given by their (4, 2) corners (in order), m, along
-    the best separating axis of their edges: > 0 apart, <= 0 overlapping (or touching).
-
-    For rectangles the separating-axis test is exact about overlap; a positive value is a
-    lower bound of their distance.
-    """
-    pa, pb = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    gap = -np.inf
-    for poly in (pa, pb):
-        edges = np.roll(poly, -1, axis=0) - poly
-        for e in edges:
-            n = np.array([-e[1], e[0]]) / np.hypot(e[0], e[1])
-            qa, qb = pa @ n, pb @ n
-            gap = max(gap, float(max(qb.min() - qa.max(), qa.min() - qb.max())))
-    return gap
-
-
 def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDArray[np.bool_]:
     """(N,) True where (N, 2) points lie inside the walls, at least ``margin`` (m) from them."""
     p = np.array(points_xy, dtype=float, ndmin=2)
@@ -207,15 +189,6 @@ def floor_view_corners(
     if not np.any(dirs[:, 2] < 0):
         return np.zeros((0, 2))
     return pts
-
-
-def polygon_area(points_xy: ArrayLike) -> float:
-    """Area of a simple polygon given by (K, 2) vertices in order, m^2."""
-    p = np.asarray(points_xy, dtype=float)
-    if len(p) < 3:
-        return 0.0
-    x, y = p[:, 0], p[:, 1]
-    return float(0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def polyline_points(waypoints: ArrayLike, spacing: float) -> tuple[NDArray, NDArray]:
