@@ -10,7 +10,8 @@
   and no other patch;
 - every camera, robot start, floor patch and calibration station lies inside the space and
   outside the obstacles;
-- the route stays inside the walls and clear of the obstacles by the parent's radius;
+- the route starts where the parent does and stays inside the walls and clear of the
+  obstacles by the parent's radius;
 - people's paths stay inside the walls (they may cross obstacles' footprints: a person
   can walk past a low structure), and their names differ from the robots';
 - every calibration visit names a camera, and from its station the total station sees at
@@ -344,8 +345,26 @@ def _check_patches(sc: Scenario) -> list[ScenarioIssue]:
     return issues
 
 
+ROUTE_START = 0.5
+"""The route starts this close to the parent's start at most, m: the campaign walks the
+route from its first waypoint (a route that starts elsewhere would send the parent there
+without CPS, or leave W's origin off the route)."""
+
+
 def _check_route(sc: Scenario) -> list[ScenarioIssue]:
     issues = []
+    first = np.asarray(sc.route.waypoints[0], dtype=float)
+    start = np.asarray(sc.robots.parent.start_xy, dtype=float)
+    if np.linalg.norm(first - start) > ROUTE_START:
+        issues.append(
+            ScenarioIssue(
+                "route.waypoints[0]",
+                f"the route starts {np.linalg.norm(first - start):.2f} m from the parent's "
+                f"start {list(sc.robots.parent.start_xy)}",
+                list(sc.route.waypoints[0]),
+                f"a route that starts where the parent does (within {ROUTE_START} m)",
+            )
+        )
     pts, seg = polyline_points(sc.route.waypoints, spacing=0.05)
     margin = PARENT_CLEARANCE
     bad_wall = ~inside_space(sc.space, pts, margin)

@@ -88,6 +88,24 @@ def test_route_through_a_wall(tmp_path):
     assert issue.expected == "a route inside the space"
 
 
+def test_a_route_that_does_not_start_at_the_parent_is_refused(tmp_path):
+    path = variant(
+        tmp_path,
+        "routestart",
+        [("waypoints = [[0.0, 0.0], [4.0, 0.0]]", "waypoints = [[1.0, 0.0], [4.0, 0.0]]")],
+    )
+    issue = _only(_error(path), "route.waypoints[0]")
+    assert "the route starts 1.00 m from the parent's start [0.0, 0.0]" in issue.problem
+    assert issue.value == [1.0, 0.0]
+    assert "starts where the parent does" in issue.expected
+    near = variant(
+        tmp_path,
+        "routenear",
+        [("waypoints = [[0.0, 0.0], [4.0, 0.0]]", "waypoints = [[0.3, 0.0], [4.0, 0.0]]")],
+    )
+    assert load_scenario(near).route.waypoints[0] == (0.3, 0.0)
+
+
 def test_route_through_an_obstacle(tmp_path):
     path = variant(
         tmp_path,
