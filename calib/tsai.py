@@ -142,6 +142,25 @@ def predicted_covariance(
     return _reported_covariance(cov_q, q, _kappa_scale(camera.image_size))
 
 
+def pixel_jacobian(camera: TsaiCamera, points_3d: ArrayLike) -> NDArray[np.float64]:
+    """Derivatives of the projected pixels with respect to Tsai's internal parameters.
+
+    The parameters are those the calibration optimises: f, cx, cy, sx, kappa1 times the
+    squared half-diagonal of the image, the world-to-camera rotation vector (3) and the
+    optical centre in the world (3, m, the last three). The derivative of the pixels with
+    respect to a world point is minus the last three columns.
+
+    Args:
+        camera: the (true or planned) camera.
+        points_3d: (N, 3) world points, m.
+
+    Returns:
+        (N, 2, 11) Jacobian, px per parameter (0 for points behind the camera).
+    """
+    p3 = np.asarray(points_3d, dtype=float).reshape(-1, 3)
+    return _pixel_jacobian(p3, camera.image_size)(_pack(camera)).reshape(len(p3), 2, N_TSAI)
+
+
 def calibrate_tsai(
     points_3d: ArrayLike,
     pixels: ArrayLike,

@@ -228,6 +228,7 @@ class PlanSession:
     """
 
     def __init__(self, scenario: Scenario, strategy: str | Strategy | None = None) -> None:
+        check_batch_data_stops(scenario)
         self.scenario = scenario
         self.strategy = (
             strategy if isinstance(strategy, Strategy) else strategy_for(scenario, strategy)
@@ -324,6 +325,23 @@ class PlanSession:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def check_batch_data_stops(scenario: Scenario) -> None:
+    """Raise ValueError unless the batch can replay the scenario's data points.
+
+    With ``campaign.data_stops = "accuracy"`` most planned stops show only some of the
+    child's LEDs and give points with fewer LEDs; the batch replays a noise-free plan in
+    which every point holds all of a child's LEDs (a trial that misses one gives up the
+    stop), so it would drop nearly every such stop. Use the geometric or render fidelity.
+    """
+    if scenario.campaign.data_stops != "all_leds":
+        raise ValueError(
+            f"scenario {scenario.name!r}: campaign.data_stops = "
+            f"{scenario.campaign.data_stops!r} is not supported by the batch fidelity (it "
+            "replays points that show all of a child's LEDs); set campaign.data_stops = "
+            "'all_leds' or use the geometric or render fidelity"
+        )
 
 
 def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:

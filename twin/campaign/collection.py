@@ -4,7 +4,8 @@ camera is calibrated with Tsai's model.
 
 A stop that gives no point (no heading shows the prisms, the child cannot get there, its
 prisms are not measured, not every LED is found) is counted as a failure and replaced by
-the plan's next spare stop.
+the plan's next spare stop. With ``campaign.data_stops = "accuracy"`` a stop where some
+LEDs are found gives a point with those (the missing LEDs' failures still counted).
 """
 
 from __future__ import annotations
@@ -106,28 +107,38 @@ class DataCollection:
             self.journal.failure("point_skipped", message, child, camera)
             return None
         seen = self.rig.led_sensors[camera].observe(child, self.sequence)
+        partial = self.settings.data_stops == "accuracy"
         if not seen.complete:
             kinds = sorted({f for f in seen.failures if f is not None})
             for kind in kinds:
                 self.journal.failure(f"led_{kind}", f"LEDs {kind}", child, camera)
-            message = "not all LEDs found: " + ", ".join(kinds)
-            self.journal.failure("point_skipped", message, child, camera)
-            return None
+            if not (partial and seen.found.any()):
+                message = "not all LEDs found: " + ", ".join(kinds)
+                self.journal.failure("point_skipped", message, child, camera)
+                return None
         assert obs.marker_pose is not None
         parent = self.travel.cps.parent
         leds_level, cov_level = led_positions(obs.marker_pose, self.travel.marker)
         # Levelled frame to W turns about z: each LED's 3 x 3 block turns with it.
         turn = np.kron(np.eye(len(leds_level)), parent.rotation)
+        leds_world = parent.level2world(leds_level)
+        pixels = seen.pixels
+        cov = turn @ cov_level @ turn.T
+        if partial and not seen.complete:
+            # The LEDs that were found, and their rows and columns of the joint covariance.
+            found = seen.found
+            rows = np.repeat(found, 3)
+            leds_world, pixels, cov = leds_world[found], pixels[found], cov[np.ix_(rows, rows)]
         return DataPoint(
             self.rig.clock.now(),
             dataset,
             camera,
             visit,
             child,
-            parent.level2world(leds_level),
-            seen.pixels,
+            leds_world,
+            pixels,
             parent.level2world(obs.point_level)[:2],
-            turn @ cov_level @ turn.T,
+            cov,
         )
 
     def calibrate(self, camera: str, visit: int, station: NDArray[np.float64], plan: StopPlan):

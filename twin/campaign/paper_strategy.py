@@ -17,10 +17,13 @@ parent, and a child's data at stops spread over each camera's view.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.camera import TsaiCamera
+from twin.campaign.plan.accurate_stops import choose_stops, partial_view_stops
 from twin.campaign.plan.formation import formation
 from twin.campaign.plan.legs import leg_goals
 from twin.campaign.plan.occlusion import unhidden_yaw
@@ -207,11 +210,12 @@ class PaperStrategy(Strategy):
         cam = sc.camera(camera).tsai()
         child = _nearest_child(view, cam.position[:2], floor_view(cam, sc.space.floor_z, 40.0, 12))
         anchor = next(c for c in view.children if c != child)
+        if sc.campaign.data_stops == "accuracy":
+            return self._accurate_stops(view, child, anchor, cam, points)
         parent = view.parent
-        marker = self.marker
         candidates = view_stops(
             sc.space,
-            marker,
+            self.marker,
             view.instrument_range,
             cam,
             parent.translation[:2],
@@ -223,15 +227,51 @@ class PaperStrategy(Strategy):
             return StopPlan(child, [])
         planned = tour(candidates[:need], view.robot_pose(child)[:2])
         eye = parent.translation.copy()
+        return StopPlan(
+            child,
+            [v.stop for v in planned],
+            [v.stop for v in candidates[need:]],
+            self._heading(view, eye),
+        )
+
+    def _heading(
+        self, view: CampaignView, eye: NDArray[np.float64]
+    ) -> Callable[[Stop], float | None]:
+        """The heading at a stop at which all the child's prisms show to the instrument at
+        ``eye`` (None: none does)."""
+        marker, floor = self.marker, view.scenario.space.floor_z
 
         def heading(stop: Stop) -> float | None:
             # Turn the child where its own mast, arms or prisms would hide a prism.
             return unhidden_yaw(
-                stop.xy, stop.yaw, marker.cubes_body, eye, sc.space.floor_z, MAX_TURN_AT_STOP_DEG
+                stop.xy, stop.yaw, marker.cubes_body, eye, floor, MAX_TURN_AT_STOP_DEG
             )
 
+        return heading
+
+    def _accurate_stops(
+        self, view: CampaignView, child: str, anchor: str, cam: TsaiCamera, points: int
+    ) -> StopPlan:
+        """``campaign.data_stops = "accuracy"``: the stops of
+        :func:`twin.campaign.plan.accurate_stops.choose_stops` among the places that show
+        at least one LED, the planned ones in a nearest-neighbour tour."""
+        sc, parent = view.scenario, view.parent
+        candidates = partial_view_stops(
+            sc.space,
+            self.marker,
+            view.instrument_range,
+            cam,
+            parent.translation[:2],
+            float(parent.translation[2]),
+            view.robot_pose(anchor)[:2],
+        )
+        if not candidates:
+            return StopPlan(child, [])
+        eye = parent.translation.copy()
+        planned, spares = choose_stops(candidates, cam, eye, view.instrument, points)
+        planned = tour(planned, view.robot_pose(child)[:2])
         return StopPlan(
-            child, [v.stop for v in planned], [v.stop for v in candidates[need:]], heading
+            child, [v.stop for v in planned], [v.stop for v in spares], self._heading(view, eye)
         )
 
 

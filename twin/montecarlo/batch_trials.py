@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from twin.batch.execute import BatchOutcome, BatchRun
-from twin.batch.plan import BatchPlan
+from twin.batch.plan import BatchPlan, check_batch_data_stops
 from twin.montecarlo.sources import isolate
 from twin.montecarlo.trial import (
     TrialFailed,
@@ -81,8 +81,11 @@ def check_batch_scenario(plan_scenario: Any) -> None:
     """Refuse what the batch fidelity cannot run.
 
     Raises:
-        ValueError: a scenario that injects faults (the batch has no faults to inject).
+        ValueError: a scenario that injects faults (the batch has no faults to inject), or
+            that sets ``campaign.data_stops = "accuracy"``
+            (:func:`twin.batch.plan.check_batch_data_stops`).
     """
+    check_batch_data_stops(plan_scenario)
     faults = plan_scenario.faults
     if faults.lost_lock_rate or faults.hidden_led_rate or faults.unreachable:
         raise ValueError(

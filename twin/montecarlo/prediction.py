@@ -105,9 +105,20 @@ def points_variance(model: dict[str, Any], stops: Sequence[dict[str, Any]], n: i
     points = np.concatenate([np.asarray(s["leds_world"], dtype=float) for s in stops])[:n]
     camera = camera_from_dict(model, "calibration record")
     assert isinstance(camera, TsaiCamera)
-    cov = position_covariance_from_blocks(
-        TsaiCameras.from_cameras([camera]), points[None], np.stack(blocks)[None]
-    )
+    cameras = TsaiCameras.from_cameras([camera])
+    if len({b.shape for b in blocks}) == 1:
+        cov = position_covariance_from_blocks(cameras, points[None], np.stack(blocks)[None])
+        return float(np.trace(cov[0]))
+    # Stops with fewer LEDs (campaign.data_stops = "accuracy"): each block padded to the
+    # largest, the points' coordinates placed at the start of their stop's block.
+    k = max(len(b) for b in blocks)
+    padded = np.zeros((len(blocks), k, k))
+    columns = []
+    for s, b in enumerate(blocks):
+        padded[s, : len(b), : len(b)] = b
+        columns.append(s * k + np.arange(len(b)))
+    cols = np.concatenate(columns)[: 3 * len(points)]
+    cov = position_covariance_from_blocks(cameras, points[None], padded[None], cols[None])
     return float(np.trace(cov[0]))
 
 

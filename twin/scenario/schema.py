@@ -751,6 +751,13 @@ class CampaignSettings(Frozen):
             the children's positions before each of the parent's fixes, in its estimate,
             its consistency test and its covariance. What the twin simulates is
             ``noise.child_creep_m``; set this to what you know of your robots. Default 0.
+        data_stops: where a child stops in a camera's view for its data. ``all_leds`` (the
+            default): only where all its LEDs show, spread over the view
+            (:func:`twin.campaign.plan.view_stops.view_stops`). ``accuracy``: wherever at
+            least one LED shows, chosen greedily to lower the predicted covariance of the
+            calibrated camera's position (:mod:`twin.campaign.plan.accurate_stops`); a stop
+            where only some LEDs are found then gives a point with those (the others'
+            failures still journaled). The batch fidelity supports only ``all_leds``.
     """
 
     reference_cameras: tuple[Name, ...] | None = Field(default=None, max_length=MAX_CAMERAS)
@@ -763,6 +770,7 @@ class CampaignSettings(Frozen):
     pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
     strategy: Name = "paper"
     child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
+    data_stops: Literal["all_leds", "accuracy"] = "all_leds"
 
 
 class Faults(Frozen):

@@ -8,6 +8,7 @@ Planned on the map (the camera's nominal pose) and the campaign's estimates.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -73,31 +74,13 @@ def view_stops(
         parent_xy: the parent's position, m. instrument_z: the instrument's height in W, m.
         anchor_xy: the other child's position (it stays), m, or None.
     """
-    floor = space.floor_z
-    leds = marker.leds_body
-    cubes = marker.cubes_body
-    # Where the image's rays meet planes at the LEDs' heights: a steep camera sees the top
-    # LED only far beyond where it sees the floor.
-    heights = np.linspace(0.0, float(leds[:, 2].max()), 4)
-    ground = np.vstack([floor_view(camera, floor + z, 40.0, grid // 2) for z in heights])
-    if len(ground) == 0:
+    found = candidate_places(space, marker, camera, parent_xy, anchor_xy, grid)
+    if found is None:
         return []
-    xy = ground[:, :2]
+    xy, yaw, idx, led_w, cube_w = found.xy, found.yaw, found.idx, found.led_w, found.cube_w
     cam = camera.position
-    yaw = np.arctan2(cam[1] - xy[:, 1], cam[0] - xy[:, 0])
-    # The mast is at the body origin and the LEDs stand in front of it: move the body back
-    # so that the mast, not the body origin, is where the image row points.
-    ok = robot_fits(space, xy)
     parent = np.asarray(parent_xy, dtype=float).reshape(2)
-    ok &= np.linalg.norm(xy - parent, axis=1) > 1.2
     anchor = None if anchor_xy is None else np.asarray(anchor_xy, float).reshape(2)
-    if anchor is not None:
-        ok &= np.linalg.norm(xy - anchor, axis=1) > 1.2
-    idx = np.flatnonzero(ok)
-    if idx.size == 0:
-        return []
-    led_w = body_points(xy[idx], yaw[idx], leds, floor)
-    cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
     inst = np.array([parent[0], parent[1], instrument_z])
     # Each test on the candidates that passed the ones before (the cheap ones first).
     sel, pix = leds_in_image(camera, led_w)
@@ -120,6 +103,61 @@ def view_stops(
     return [ViewStop(Stop(xy[keep[k]].copy(), float(yaw[keep[k]])), pix[k]) for k in order]
 
 
+@dataclass(frozen=True)
+class CandidatePlaces:
+    """Where a child could stand in a camera's view, before the visibility tests.
+
+    Attributes:
+        xy: (M, 2) sampled places, m. yaw: (M,) the child's heading there, facing the
+            camera, rad. idx: (N,) the places where the child fits, clear of the parent
+            and the anchor. led_w, cube_w: (N, K, 3) its LEDs and prisms in W there, m.
+    """
+
+    xy: NDArray[np.float64]
+    yaw: NDArray[np.float64]
+    idx: NDArray[np.intp]
+    led_w: NDArray[np.float64]
+    cube_w: NDArray[np.float64]
+
+
+def candidate_places(
+    space: Space,
+    marker: MarkerAssembly,
+    camera: TsaiCamera,
+    parent_xy: ArrayLike,
+    anchor_xy: ArrayLike | None,
+    grid: int = 40,
+) -> CandidatePlaces | None:
+    """The places of :func:`view_stops` where the child fits, facing ``camera``, clear of
+    the walls, the obstacles, the parent and the anchor child (None: no place)."""
+    floor = space.floor_z
+    leds = marker.leds_body
+    cubes = marker.cubes_body
+    # Where the image's rays meet planes at the LEDs' heights: a steep camera sees the top
+    # LED only far beyond where it sees the floor.
+    heights = np.linspace(0.0, float(leds[:, 2].max()), 4)
+    ground = np.vstack([floor_view(camera, floor + z, 40.0, grid // 2) for z in heights])
+    if len(ground) == 0:
+        return None
+    xy = ground[:, :2]
+    cam = camera.position
+    yaw = np.arctan2(cam[1] - xy[:, 1], cam[0] - xy[:, 0])
+    # The mast is at the body origin and the LEDs stand in front of it: move the body back
+    # so that the mast, not the body origin, is where the image row points.
+    ok = robot_fits(space, xy)
+    parent = np.asarray(parent_xy, dtype=float).reshape(2)
+    ok &= np.linalg.norm(xy - parent, axis=1) > 1.2
+    anchor = None if anchor_xy is None else np.asarray(anchor_xy, float).reshape(2)
+    if anchor is not None:
+        ok &= np.linalg.norm(xy - anchor, axis=1) > 1.2
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return None
+    led_w = body_points(xy[idx], yaw[idx], leds, floor)
+    cube_w = body_points(xy[idx], yaw[idx], cubes, floor)
+    return CandidatePlaces(xy, yaw, idx, led_w, cube_w)
+
+
 def leds_in_image(
     camera: TsaiCamera, led_w: NDArray[np.float64]
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
@@ -130,6 +168,16 @@ def leds_in_image(
         (M,) indices of those candidates, and (N, K, 2) every candidate's pixels (NaN
         where an LED cannot be projected), px.
     """
+    each, uv = each_led_in_image(camera, led_w)
+    return np.flatnonzero(each.all(axis=1)), uv
+
+
+def each_led_in_image(
+    camera: TsaiCamera, led_w: NDArray[np.float64]
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """(N, K) whether each of N candidates' (N, K, 3) LEDs (W, m) lies more than 0.1 m in
+    front of the camera and projects inside its image with ``IMAGE_MARGIN``, and (N, K, 2)
+    their pixels (NaN where an LED cannot be projected), px."""
     n, k = led_w.shape[:2]
     flat = led_w.reshape(-1, 3)
     z = camera.to_camera_frame(flat)[:, 2].reshape(n, k)
@@ -141,7 +189,7 @@ def leds_in_image(
         & (uv[..., 1] >= IMAGE_MARGIN)
         & (uv[..., 1] <= h - 1 - IMAGE_MARGIN)
     )
-    return np.flatnonzero((z > 0.1).all(axis=1) & inside.all(axis=1)), uv
+    return (z > 0.1) & inside, uv
 
 
 def leds_seen(
@@ -153,6 +201,18 @@ def leds_seen(
 ) -> NDArray[np.bool_]:
     """(N,) whether the camera at ``cam`` ((3,) m) sees all (N, K, 3) LEDs of each
     candidate past the map's obstacles, the parent and the anchor child ((2,) m or None)."""
+    return ~leds_hidden(space, cam, led_w, parent_xy, anchor_xy).any(axis=1)
+
+
+def leds_hidden(
+    space: Space,
+    cam: NDArray[np.float64],
+    led_w: NDArray[np.float64],
+    parent_xy: NDArray[np.float64],
+    anchor_xy: NDArray[np.float64] | None,
+) -> NDArray[np.bool_]:
+    """(N, K) whether the map's obstacles, the parent or the anchor child ((2,) m or None)
+    hide each of (N, K, 3) LEDs from the camera at ``cam`` ((3,) m)."""
     n, k = led_w.shape[:2]
     flat = led_w.reshape(-1, 3)
     floor = space.floor_z
@@ -160,7 +220,7 @@ def leds_seen(
     hidden |= passes_near(cam, flat, parent_xy, parent_profile(floor))
     if anchor_xy is not None:
         hidden |= passes_near(cam, flat, anchor_xy, child_profile(floor))
-    return ~hidden.reshape(n, k).any(axis=1)
+    return hidden.reshape(n, k)
 
 
 def prisms_seen(
@@ -204,7 +264,10 @@ def _norms(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.sqrt(np.add.reduce(v * v, axis=1))
 
 
-def tour(stops: list[ViewStop], start_xy: ArrayLike) -> list[ViewStop]:
+_S = TypeVar("_S", bound=ViewStop)
+
+
+def tour(stops: list[_S], start_xy: ArrayLike) -> list[_S]:
     """The stops reordered as a nearest-neighbour tour from ``start_xy`` (less driving)."""
     left = list(stops)
     here = np.asarray(start_xy, dtype=float).reshape(2)
