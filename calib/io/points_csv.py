@@ -161,3 +161,70 @@ def write_points_csv(
         w.writerow(COLUMNS)
         for p, q in zip(points_3d, pixels, strict=True):
             w.writerow([f"{v:.6f}" for v in p * scale] + [f"{v:.4f}" for v in q])
+
+
+PIXEL_ORIGINS = ("top-left", "bottom-left")
+
+
+def _pixel_convention(
+    pixels: NDArray[np.float64] | list, origin: str, height: int | None
+) -> NDArray[np.float64]:
+    """The pixels as a float (N, 2) copy, after checking ``origin`` and ``height``."""
+    if origin not in PIXEL_ORIGINS:
+        raise ValueError(f"pixel origin must be one of {', '.join(PIXEL_ORIGINS)}, got {origin!r}")
+    if origin == "bottom-left" and height is None:
+        raise ValueError(
+            "pixels with the origin at the bottom-left need the image height H "
+            "(v is turned into (H - 1) - v); got no height"
+        )
+    uv = np.array(pixels, dtype=float, copy=True)
+    if uv.ndim != 2 or uv.shape[1] != 2:
+        raise ValueError(f"pixels must be an (N, 2) array, got shape {uv.shape}")
+    return uv
+
+
+def pixels_to_opencv(
+    pixels: NDArray[np.float64] | list,
+    *,
+    origin: str = "top-left",
+    one_based: bool = False,
+    height: int | None = None,
+) -> NDArray[np.float64]:
+    """Pixels written in another convention -> OpenCV's ((0, 0) the centre of the top-left
+    pixel, v down).
+
+    One-based indices (MATLAB's: the first pixel is 1) are made zero-based first,
+    u' = u - 1, v' = v - 1; then a bottom-left origin (v up) is turned over,
+    v' = (H - 1) - v, so that the centre of the bottom row goes to H - 1.
+
+    Args:
+        pixels: (N, 2) u, v in the file's convention, px.
+        origin: "top-left" (OpenCV's) or "bottom-left".
+        one_based: the file counts pixels from 1.
+        height: image height H, px; needed for a bottom-left origin.
+
+    Returns:
+        (N, 2) pixels in OpenCV's convention (a copy).
+    """
+    uv = _pixel_convention(pixels, origin, height)
+    if one_based:
+        uv -= 1.0
+    if origin == "bottom-left":
+        uv[:, 1] = (height - 1) - uv[:, 1]
+    return uv
+
+
+def pixels_from_opencv(
+    pixels: NDArray[np.float64] | list,
+    *,
+    origin: str = "top-left",
+    one_based: bool = False,
+    height: int | None = None,
+) -> NDArray[np.float64]:
+    """The inverse of :func:`pixels_to_opencv`: OpenCV pixels (N, 2) -> the given convention."""
+    uv = _pixel_convention(pixels, origin, height)
+    if origin == "bottom-left":
+        uv[:, 1] = (height - 1) - uv[:, 1]
+    if one_based:
+        uv += 1.0
+    return uv

@@ -22,11 +22,20 @@ from rich.table import Table
 
 from calib import CalibrationResult, calibrate_opencv, calibrate_tsai
 from calib.checks import MAX_IMAGE_SIDE_PX
+from calib.handedness import (
+    AXES,
+    MirroredFrameError,
+    camera_axes,
+    is_poor_fit,
+    mirror_explains,
+    mirror_hints,
+    mirror_points,
+)
 from calib.io import load_camera, read_points_csv, save_camera
 from calib.io.camera_files import camera_format
-from calib.io.points_csv import UNIT_SCALE
+from calib.io.points_csv import PIXEL_ORIGINS, UNIT_SCALE, pixels_to_opencv
 from calib.paper_units import kappa1_px2mm
-from twin.cli.calibrate_notes import DEFAULT_UNITS, cli_notes
+from twin.cli.calibrate_notes import DEFAULT_UNITS, cli_notes, mirror_note, mirrored_message
 from twin.outputs import OutputError, OutputFiles, check_file_target
 
 # Pixel pitches accepted by --pixel-size, mm. Real sensors range from about 0.56 um (phone
@@ -145,6 +154,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         "measurements (default: off: they are merged and counted, since a copy of a row is "
         "not a second measurement and counting it twice would shrink every standard "
         "deviation)",
+    )
+    p.add_argument(
+        "--mirror-axis",
+        choices=AXES,
+        help="the world frame is left-handed with this axis reversed: negate it before "
+        "calibrating; the position and camera axes are reported in the file's frame, the "
+        "rotation and --out in the mirrored, right-handed one (default: none)",
+    )
+    p.add_argument(
+        "--pixel-origin",
+        choices=PIXEL_ORIGINS,
+        default="top-left",
+        help="where v = 0 is: top-left (OpenCV's, v down) or bottom-left (v up; turned into "
+        "(H - 1) - v with H from --image-size) (default: top-left)",
+    )
+    p.add_argument(
+        "--one-based",
+        action="store_true",
+        help="u, v count pixels from 1 (MATLAB's convention): 1 is subtracted from both, "
+        "before --pixel-origin is applied (default: off, counted from 0)",
     )
     p.set_defaults(func=run)
 
@@ -344,6 +373,107 @@ def _write_outputs(args: argparse.Namespace, result: CalibrationResult, d: dict)
     return written
 
 
+def _input_pixels(args: argparse.Namespace, pixels: np.ndarray) -> np.ndarray:
+    """The file's pixels in OpenCV's convention: --one-based first, then --pixel-origin."""
+    height = args.image_size[1] if args.image_size is not None else None
+    if args.pixel_origin == "bottom-left" and height is None:
+        raise ValueError(
+            "--pixel-origin bottom-left needs the image height: give --image-size W H "
+            "(v is turned into (H - 1) - v); expected a known height"
+        )
+    return pixels_to_opencv(
+        pixels, origin=args.pixel_origin, one_based=args.one_based, height=height
+    )
+
+
+def _calibrate_checked(
+    args: argparse.Namespace, points: np.ndarray, pixels: np.ndarray
+) -> tuple[CalibrationResult, list[warnings.WarningMessage]]:
+    """:func:`_calibrate`, and when it fails or fits poorly, a try of the mirror image.
+
+    Points that fit only mirrored raise :class:`MirroredFrameError` naming the option to
+    use (``--mirror-axis``, or ``--pixel-origin``: a turned-over image is a mirror image);
+    otherwise the calibration's own error is raised, or its poor result returned. One
+    mirror (x) is enough: every mirror image fits equally well (:mod:`calib.handedness`).
+    """
+    failure: ValueError | None = None
+    rms: float | None = None
+    try:
+        result, caught = _calibrate(args, points, pixels)
+    except ValueError as exc:
+        failure = exc
+    else:
+        rms = result.metrics.pixel.rms
+        if not is_poor_fit(rms):
+            return result, caught
+    try:
+        mirrored, _ = _calibrate(args, mirror_points(points, "x"), pixels)
+    except ValueError:
+        mirrored = None
+    if mirrored is not None and mirror_explains(rms, mirrored.metrics.pixel.rms):
+        problem = str(failure) if failure else f"the fit is poor (pixel RMS {rms:.3g} px)"
+        centre = mirror_points(mirrored.camera.position, "x")
+        raise MirroredFrameError(
+            mirrored_message(
+                problem,
+                mirror_hints(centre, points),
+                mirrored.metrics.pixel.rms,
+                args.mirror_axis,
+                args.pixel_origin,
+            )
+        )
+    if failure is not None:
+        raise failure
+    return result, caught
+
+
+def add_input_conventions(
+    d: dict[str, Any], result: CalibrationResult, args: argparse.Namespace
+) -> None:
+    """Record the pixel and frame options in a result dictionary, and with --mirror-axis
+    give the position and camera axes in the file's frame.
+
+    Adds ``mirror_axis``, ``pixel_origin``, ``one_based`` and ``camera_axes`` (unit
+    directions of image right, image down and the optical axis in the file's frame). With
+    a mirror axis, ``parameters.position`` is mapped back to the file's frame, and the
+    rotation (which a left-handed frame has none of) moves to ``mirrored_frame`` with the
+    position there: the camera written by --out is that one.
+    """
+    axis = args.mirror_axis
+    d["mirror_axis"], d["pixel_origin"], d["one_based"] = axis, args.pixel_origin, args.one_based
+    d["camera_axes"] = {
+        k: v.tolist() for k, v in camera_axes(result.camera.world2cam_r, axis).items()
+    }
+    if axis is None:
+        return
+    par, std = d["parameters"], d["std"]
+    d["mirrored_frame"] = {
+        "axis": axis,
+        "rotation_deg": par.pop("rotation_deg"),
+        "rotation_deg_std": std.pop("rotation_deg"),
+        "position": par["position"],
+    }
+    par["position"] = mirror_points(par["position"], axis).tolist()
+    d["notes"].append(mirror_note(axis))
+
+
+def print_mirrored(console: Console, d: dict[str, Any]) -> None:
+    """Print the camera axes in the file's frame and the rotation in the mirrored one."""
+    axis = d["mirror_axis"]
+    t = Table(title=f"camera axes in the file's frame (left-handed: {axis} reversed)")
+    for col in ("axis", "x", "y", "z"):
+        t.add_column(col, justify="left" if col == "axis" else "right")
+    for name, v in d["camera_axes"].items():
+        t.add_row(name.replace("_", " "), *(f"{c:.4f}" for c in v))
+    console.print(t)
+    rot = ", ".join(f"{v:.4f}" for v in d["mirrored_frame"]["rotation_deg"])
+    console.print(
+        f"rotation about X, Y, Z in the mirrored, right-handed frame ({axis} negated; the "
+        f"frame of --out): {rot} deg",
+        highlight=False,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``twin calibrate``; returns the exit code (2 for bad input)."""
     console = Console(soft_wrap=True)
@@ -352,10 +482,15 @@ def run(args: argparse.Namespace) -> int:
         _check_model_options(args)
         _check_outputs(args)
         points, pixels = read_points_csv(args.points, args.units)
-        result, caught = _calibrate(args, points, pixels)
+        pixels = _input_pixels(args, pixels)
+        points = mirror_points(points, args.mirror_axis)
+        result, caught = _calibrate_checked(args, points, pixels)
         d = result_to_dict(result, args.units, args.pixel_size)
         d["notes"], d["warnings"] = cli_notes(result, args.units, caught)
+        add_input_conventions(d, result, args)
         print_result(console, d, str(args.points))
+        if d["mirror_axis"] is not None:
+            print_mirrored(console, d)
         for line in _write_outputs(args, result, d):
             console.print(escape(line), highlight=False)
     except ValueError as exc:

@@ -69,3 +69,64 @@ def cli_notes(
         if message not in result.notes and message not in notes:
             notes.append(message)
     return notes, list(told.values())
+
+
+def _v_fix(pixel_origin: str) -> str:
+    """The option that turns the pixels' v the other way, given the current origin."""
+    if pixel_origin == "bottom-left":
+        return "run again without --pixel-origin bottom-left (v counted from the top)"
+    return "run again with --pixel-origin bottom-left (v counted from the bottom)"
+
+
+def mirrored_message(
+    problem: str, hints: tuple[str, ...], rms_px: float, mirror_axis: str | None, pixel_origin: str
+) -> str:
+    """The error for points that fit only in their mirror image, naming the option to use.
+
+    Args:
+        problem: what went wrong with the points as given (the calibration's error, or the
+            poor fit).
+        hints: the likely causes (:func:`calib.handedness.mirror_hints`).
+        rms_px: pixel residual RMS of the mirrored fit, px.
+        mirror_axis: the ``--mirror-axis`` already given, or None.
+        pixel_origin: the ``--pixel-origin`` given.
+    """
+    fits = (
+        f"{problem}; but the points fit a camera in their mirror image (pixel RMS {rms_px:.3g} px)"
+    )
+    if mirror_axis is not None:
+        return (
+            f"{fits}, that is without --mirror-axis {mirror_axis}: the frame appears "
+            "right-handed; run again without --mirror-axis"
+        )
+    if hints == ("x", "y", "v"):
+        cause = (
+            "the world frame appears mirrored (left-handed): the fitted camera sits above its "
+            "points, so z is up and the x or the y axis is reversed. The data cannot tell which "
+            "(negating either gives the same camera in your frame): run again with "
+            "--mirror-axis x or --mirror-axis y, the axis your survey reversed. If instead "
+            f"the pixels' v is counted the other way, {_v_fix(pixel_origin)}"
+        )
+    elif hints == ("z",):
+        cause = (
+            "the world frame appears mirrored (left-handed): the fitted camera sits below its "
+            "points, so the z axis appears reversed (pointing down): run again with "
+            "--mirror-axis z"
+        )
+    else:
+        cause = (
+            "the world frame appears mirrored (left-handed), and the scene does not tell which "
+            "axis is reversed (any gives the same camera in your frame): run again with "
+            "--mirror-axis x, y or z. If instead the pixels' v is counted the other way, "
+            f"{_v_fix(pixel_origin)}"
+        )
+    return f"{fits}: {cause}"
+
+
+def mirror_note(axis: str) -> str:
+    """The note of a calibration run with ``--mirror-axis``."""
+    return (
+        f"--mirror-axis {axis}: the points' {axis} was negated to make the frame right-handed; "
+        "the position and the camera axes are given in your frame; the rotation and the "
+        f"camera written by --out describe the camera in the mirrored frame ({axis} negated)"
+    )
