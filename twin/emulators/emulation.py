@@ -65,7 +65,7 @@ CAMERA_TIMEOUT_WALL = 5.0
 time whatever the time scale (and the first rendered frame takes a fraction of a second),
 so their timeout in rig seconds is this many wall seconds at the emulation's scale."""
 
-LINK_TIMEOUT_WALL = 1.0
+LINK_TIMEOUT_WALL = 2.5
 """Least wall time the rig file gives the robots' and the instrument's links to answer, s.
 Their timeouts are in rig seconds (2 s without a robot's packet, 10 s for an instrument's
 reply); at a time scale of 30 those are 67 and 333 ms of wall time, which a busy host (the

@@ -170,6 +170,15 @@ def _moving(emulation) -> list[str]:
     return [name for name, robot in emulation.robots.items() if robot.body.moving]
 
 
+def _led_switches(emulation) -> int:
+    """How many times the children's LEDs were switched (ARCOS DIGOUT) so far."""
+    return sum(
+        sum(1 for number, _ in list(robot.commands) if number == 30)
+        for name, robot in emulation.robots.items()
+        if name != "parent"
+    )
+
+
 def _data_stop_drive(emulation) -> bool:
     """A child drives (the campaign is past its start and taking data)."""
     return any(n != "parent" for n in _moving(emulation))
@@ -251,10 +260,10 @@ def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
     injected: list[float] = []
 
     def fault_when_taking_data() -> None:
-        end = time.monotonic() + 60
-        while not _data_stop_drive(emulation) and time.monotonic() < end:
+        # Two LED sequences seen (6 switches each): data points have been taken.
+        end = time.monotonic() + 90
+        while _led_switches(emulation) < 12 and time.monotonic() < end:
             time.sleep(0.005)
-        time.sleep(0.5)  # a few data points in
         inject(emulation)
         injected.append(time.monotonic())
 
