@@ -20,6 +20,10 @@ from tests.twin.campaign.regression.cases import CASES, environment, run_case, s
 
 NOT_COMPARED = ("wall_time_s", "timings_s", "scenario_file")
 
+PROCESSOR = {"cpu", "machine"}
+"""What, when it differs from where the runs were stored, makes a difference not the
+code's: the comparison is skipped with the difference named."""
+
 MOVES = ("child_turned", "parent_stepped_aside", "prism_reaimed", "prism_search")
 """The kinds that were failures in the stored results and are events now."""
 
@@ -73,6 +77,15 @@ def test_the_same_seed_gives_the_same_results(case, tmp_path):
         return
     here = environment()
     changed = {k: (v, here.get(k)) for k, v in record["environment"].items() if here.get(k) != v}
+    if changed.keys() & PROCESSOR:
+        # Vectorised maths rounds differently on another processor, and the campaign's
+        # decisions amplify the last bits: bit for bit holds only where they were stored.
+        pytest.skip(
+            f"{case.name}: {difference}; stored on another processor "
+            f"({', '.join(f'{k} {a} -> {b}' for k, (a, b) in changed.items())}): compare on "
+            "one like it, or regenerate them here (python -m "
+            "tests.twin.campaign.regression.cases) to check changes on this one"
+        )
     if changed:
         pytest.fail(
             f"{case.name}: {difference}. The results were stored with other versions "

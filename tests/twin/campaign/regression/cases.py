@@ -7,12 +7,19 @@ change of results is intended or a dependency upgrade changes them, and say whic
 commit:
 
     .venv/bin/python -m tests.twin.campaign.regression.cases
+
+That replaces every store. Vectorised maths rounds differently on another processor, so a
+store is kept per processor: on a new one, with the code's results unchanged (compare them
+on a processor that has a store first), add its own with
+
+    .venv/bin/python -m tests.twin.campaign.regression.cases --add-processor
 """
 
 from __future__ import annotations
 
 import json
 import platform
+import shutil
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -124,21 +131,43 @@ def run_case(case: Case, out_dir: Path) -> dict[str, Any]:
     return json.loads(json.dumps(results, allow_nan=False))
 
 
+PROCESSORS = STORED / "processors"
+"""Stores of other processors than the main one's, a folder each."""
+
+
+def _slug(cpu: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in cpu).strip("_") or "unknown"
+
+
 def stored(case: Case) -> dict[str, Any]:
-    """The stored record of a case: ``environment`` and ``results``."""
-    return json.loads((STORED / f"{case.name}.json").read_text(encoding="utf-8"))
+    """The stored record of a case (``environment`` and ``results``): the one made on this
+    machine's processor if there is one, else the main store's."""
+    main_path = STORED / f"{case.name}.json"
+    here = _cpu()
+    for path in [main_path, *sorted(PROCESSORS.glob(f"*/{case.name}.json"))]:
+        if path.is_file():
+            record = json.loads(path.read_text(encoding="utf-8"))
+            if record["environment"].get("cpu") == here:
+                return record
+    return json.loads(main_path.read_text(encoding="utf-8"))
 
 
-def main(names: list[str]) -> None:
-    """Run the cases (all, or those named) and store their results."""
-    STORED.mkdir(exist_ok=True)
+def main(args: list[str]) -> None:
+    """Run the cases (all, or those named) and store their results: replacing every store,
+    or with ``--add-processor`` as this processor's own store beside the others."""
+    add = "--add-processor" in args
+    names = [a for a in args if a != "--add-processor"]
+    folder = PROCESSORS / _slug(_cpu()) if add else STORED
+    if not add and not names and PROCESSORS.exists():
+        shutil.rmtree(PROCESSORS)  # the other processors' stores are stale now
+    folder.mkdir(parents=True, exist_ok=True)
     for case in CASES:
         if names and case.name not in names:
             continue
         with tempfile.TemporaryDirectory() as tmp:
             results = run_case(case, Path(tmp))
         record = {"case": case.__dict__, "environment": environment(), "results": results}
-        path = STORED / f"{case.name}.json"
+        path = folder / f"{case.name}.json"
         path.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n", encoding="utf-8")
         print(f"{case.name}: {len(results['calibrations'])} calibrations -> {path}")
 
