@@ -25,6 +25,7 @@ from twin.instruments.errors import (
     InconsistentMarkerError,
     InstrumentBusyError,
     InstrumentError,
+    InstrumentFaultError,
     InstrumentTimeoutError,
     LineOfSightBlockedError,
     NoPrismInConeError,
@@ -101,8 +102,10 @@ def _shoot(
 ) -> TotalStationMeasurement | None:
     """One shot aimed at ``aim``, retried after a lost lock with aims swept around it.
 
-    ``failed`` (when given) receives the kind of each failure of the instrument itself (not
-    of the aim) that ended the shot without a measurement: a prism search would not help.
+    ``failed`` (when given) receives the kind of each failure of a real instrument itself
+    (an error code of its own, or busy or silent on every attempt) that ended the shot
+    without a measurement: a prism search would not help. Failures of the geometry (out of
+    range, tilted) are not among them: the search goes on as before.
     """
     sweep = 0
     aimed = True
@@ -121,7 +124,7 @@ def _shoot(
             aimed = False
         except InstrumentError as exc:
             report.failure(exc.reason.value, str(exc), {"cube": k, "attempt": attempt})
-            if failed is not None:
+            if failed is not None and isinstance(exc, InstrumentFaultError):
                 failed.append(exc.reason.value)
             return None
     if aimed:
