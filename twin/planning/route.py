@@ -176,7 +176,10 @@ class RouteGraph:
             segments tangent to it do not cut the arcs and jagged walls it smooths, and it
             has far fewer corners. Every edge is still checked against ``reachable``
             itself, so paths never leave it; they may be a few cm longer than the exact
-            shortest one, and a gap narrower than ``2 * simplify`` is not used.
+            shortest one, and a gap narrower than ``2 * simplify`` is not used. A start or
+            goal closer than ``2 * simplify`` to the floor's edge may not see the shrunk
+            corners that would lead to it (at the back of a pocket, say) and the path then
+            goes round: the default is the exact graph.
 
     Attributes:
         points: the graph's corners, (N, 2), m.
@@ -187,7 +190,7 @@ class RouteGraph:
     safe to query from several threads at once.
     """
 
-    def __init__(self, reachable: BaseGeometry, *, simplify: float = 0.02) -> None:
+    def __init__(self, reachable: BaseGeometry, *, simplify: float = 0.0) -> None:
         if not math.isfinite(simplify) or simplify < 0.0:
             raise ValueError(f"simplify must be a finite tolerance >= 0 m, got {simplify!r}")
         self.reachable = reachable

@@ -54,8 +54,8 @@ def _two_rooms(door: float) -> Polygon:
 
 
 ROOM = _cluttered_room()
-EXACT = RouteGraph(ROOM, simplify=0.0)
-SIMPLIFIED = RouteGraph(ROOM)
+EXACT = RouteGraph(ROOM)
+SIMPLIFIED = RouteGraph(ROOM, simplify=0.02)
 
 
 def test_path_around_a_pillar_has_the_analytic_length() -> None:
@@ -68,7 +68,7 @@ def test_path_around_a_pillar_has_the_analytic_length() -> None:
     assert_allclose(path[0], start)
     assert_allclose(path[-1], goal)
     assert _length(path) == pytest.approx(truth, rel=0.01)
-    graph = RouteGraph(reachable)  # simplified corners: a little longer, still within 1 %
+    graph = RouteGraph(reachable, simplify=0.02)  # simplified: a little longer, within 1 %
     assert graph.length(start, goal) == pytest.approx(truth, rel=0.01)
     assert graph.length(start, goal) >= _length(path) - 1e-9
     assert len(graph.points) < len(RouteGraph(reachable, simplify=0.0).points)
@@ -106,9 +106,14 @@ def test_a_path_never_leaves_the_reachable_floor_and_is_shortest(start, goal, vi
     assert length >= math.dist(start, goal) - 1e-9
     # no detour through a third point is shorter
     assert length <= EXACT.length(start, via) + EXACT.length(via, goal) + 1e-9
+    # The simplified graph promises near-shortest paths between points at least twice its
+    # tolerance inside the floor (one on the floor's very edge, at the back of a pocket,
+    # may not see the shrunk corners that lead to it).
     simplified = SIMPLIFIED.path(start, goal)
     assert ROOM.buffer(1e-6).covers(LineString(simplified))
-    assert length - 1e-9 <= _length(simplified) <= 1.02 * length + 0.05
+    inner = ROOM.buffer(-2 * SIMPLIFIED.simplify)
+    if inner.covers(Point(start)) and inner.covers(Point(goal)):
+        assert length - 1e-9 <= _length(simplified) <= 1.02 * length + 0.05
 
 
 def test_a_door_narrower_than_twice_the_clearance_has_no_path() -> None:
