@@ -51,6 +51,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="M",
         help="grid the map's blocked floor is laid on as boxes, m (default: 0.1)",
     )
+    p.add_argument(
+        "--data-stops",
+        choices=("all_leds", "accuracy"),
+        default="all_leds",
+        help="where the child stops for a camera's data: all_leds (where all its LEDs show, "
+        "the default) or accuracy (chosen to lower the camera's predicted error; the batch "
+        "fidelity does not run it)",
+    )
     p.add_argument("--name", help="the scenario's name (default: the output file's stem)")
     p.add_argument(
         "--no-predict",
@@ -86,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             resolution=args.resolution,
             predict=not args.no_predict,
             overwrite=args.overwrite,
+            data_stops=args.data_stops,
         )
     except (MapError, ValueError) as exc:
         console.print(f"[red]error:[/red] {escape(str(exc))}")

@@ -51,8 +51,12 @@ def write_site(
     resolution: float = 0.1,
     predict: bool = True,
     overwrite: bool = False,
+    data_stops: str = "all_leds",
 ) -> WrittenSite:
     """Plan a site and write its scenario (TOML) and figure.
+
+    ``data_stops`` is the scenario's ``campaign.data_stops``: ``accuracy`` plans the child's
+    data points for the camera's accuracy (:mod:`twin.campaign.plan.accurate_stops`).
 
     Raises:
         MapError: a bad map, cameras file or plan; nothing is written.
@@ -77,6 +81,8 @@ def write_site(
         resolution=resolution,
         map_file=map_ref,
     )
+    if data_stops != "all_leds":
+        plan.scenario["campaign"] = {"data_stops": data_stops}
     try:
         scenario = scenario_from_dict(plan.scenario, file=out)
     except ScenarioError as exc:

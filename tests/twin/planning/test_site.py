@@ -159,6 +159,18 @@ def test_a_given_order_and_start_are_kept_and_the_route_returns(tmp_path):
     assert sc.site.map_pose == pytest.approx((0.0, 6.0, 90.0))
 
 
+def test_a_site_may_plan_its_data_points_for_accuracy(tmp_path):
+    grid = write_grid(tmp_path, [PILLAR])
+    cams = write_cameras(tmp_path)
+    out = tmp_path / "accurate.toml"
+    args = ["site", str(grid), "--cameras", str(cams), "--out", str(out), "--no-predict"]
+    assert main([*args, "--data-stops", "accuracy"]) == 0
+    sc = load_scenario(out)
+    assert sc.campaign.data_stops == "accuracy"
+    results = run_scenario(sc, tmp_path / "run", fidelity="geometric", report=False)
+    assert sorted(c["camera"] for c in results["calibrations"]) == ["cam1", "cam2"]
+
+
 def test_bad_maps_and_cameras_are_named_and_nothing_is_written(tmp_path, capsys):
     grid = write_grid(tmp_path, [PILLAR])
     out = tmp_path / "bad.toml"
