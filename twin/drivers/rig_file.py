@@ -35,15 +35,14 @@ the value and what was expected (:class:`RigFileError`). Times are in rig second
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field
 
 from twin.scenario.errors import ScenarioError, ScenarioIssue
-from twin.scenario.loader import read_mapping, validation_issues
+from twin.scenario.loader import read_mapping, validate_model
 from twin.scenario.schema import Frozen, Name, Scenario
 
 Seconds = Annotated[float, Field(gt=0.0, le=86400.0)]
@@ -190,13 +189,9 @@ def load_rig_file(path: str | Path) -> RigFile:
 
 def rig_file_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> RigFile:
     """Validate a parsed rig file (see :func:`load_rig_file`)."""
-
     data = dict(raw)
     data["source"] = str(file)
-    try:
-        rig = RigFile.model_validate_json(json.dumps(data, default=str), strict=True)
-    except ValidationError as exc:
-        raise RigFileError(file, validation_issues(exc, data, RigFile)) from None
+    rig = validate_model(RigFile, data, file, RigFileError)
     issues = _own_issues(rig)
     if issues:
         raise RigFileError(file, issues)

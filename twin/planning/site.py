@@ -20,18 +20,16 @@ The result is an ordinary scenario (a mapping, validated by the scenario loader)
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from pydantic import BaseModel
 from shapely.geometry import LineString, Point
 from shapely.geometry.base import BaseGeometry
 
@@ -41,10 +39,9 @@ from twin.planning.frames import MapPose
 from twin.planning.route import NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
+from twin.scenario.loader import validate_model
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
-
-T = TypeVar("T", bound=BaseModel)
 
 FORMATION_CLEARANCE = PIONEER3AT.radius + 0.35
 """Clearance the parent's route keeps from everything, m: the parent's radius and room
@@ -275,14 +272,14 @@ def _stations(
     (``station_free[0]``) where one there sees enough, else on the floor the parent can
     reach (``station_free[1]``)."""
     boxed = boxed_space(floor, pose, resolution)
-    space = _validated(Space, _space_dict(boxed, floor_z))
+    space = validate_model(Space, _space_dict(boxed, floor_z))
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
     ts = Noise().total_station
     wheres = [pose.geometry2world(g) for g in station_free if not g.is_empty]
     out: dict[str, Station] = {}
     for name in chosen:
-        camera = _validated(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
+        camera = validate_model(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
         for k, where in enumerate(wheres):
             try:
                 out[name] = choose_station(
@@ -364,12 +361,6 @@ def _camera_in_world(cam: Mapping[str, Any], pose: MapPose, floor_z: float) -> d
     out["position"] = [float(xy[0]), float(xy[1]), float(floor_z + p[2])]
     out["view_direction"] = [float(dxy[0]), float(dxy[1]), float(d[2])]
     return out
-
-
-def _validated(model: type[T], data: Mapping[str, Any]) -> T:
-    """``data`` as a scenario section, validated as the scenario loader does (strictly,
-    lists read as tuples)."""
-    return model.model_validate_json(json.dumps(data), strict=True)
 
 
 def _space_dict(space: BoxedSpace, floor_z: float) -> dict[str, Any]:

@@ -8,7 +8,7 @@ import types
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
 import annotated_types
 import yaml
@@ -102,15 +102,33 @@ def scenario_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> S
             file, [ScenarioIssue("source", "reserved key", data["source"], "no such key")]
         )
     data["source"] = str(file)
-    try:
-        # JSON mode with strict types: lists become tuples, but "3" never becomes 3.0.
-        sc = Scenario.model_validate_json(json.dumps(data, default=str), strict=True)
-    except ValidationError as exc:
-        raise ScenarioError(file, validation_issues(exc, data, Scenario)) from None
+    sc = validate_model(Scenario, data, file)
     issues = check_scenario(sc)
     if issues:
         raise ScenarioError(file, issues)
     return sc
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def validate_model(
+    model: type[M],
+    data: Mapping[str, Any],
+    file: str | Path = "<dict>",
+    error: type[ScenarioError] = ScenarioError,
+) -> M:
+    """``data`` validated as ``model`` the way scenario files are: JSON mode with strict
+    types (lists become tuples, but "3" never becomes 3.0).
+
+    Raises:
+        ``error`` (a :class:`ScenarioError`): naming ``file``, each key, its value and what
+            was expected.
+    """
+    try:
+        return model.model_validate_json(json.dumps(data, default=str), strict=True)
+    except ValidationError as exc:
+        raise error(file, validation_issues(exc, data, model)) from None
 
 
 def validation_issues(
