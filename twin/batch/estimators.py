@@ -153,6 +153,12 @@ def coordinate_rows(rows: NDArray[np.intp]) -> NDArray[np.intp]:
     return (3 * rows[..., None] + np.arange(3)).reshape(len(rows), -1)
 
 
+def slot_rows(rows: NDArray[np.intp], slots: NDArray[np.intp] | None) -> NDArray[np.intp]:
+    """(G, n) point indices -> (G, 3n) their x, y, z rows of a block-diagonal covariance
+    whose layout places point j at ``slots[j]`` (in order where ``slots`` is None)."""
+    return coordinate_rows(rows if slots is None else np.asarray(slots)[rows])
+
+
 class Estimators(abc.ABC):
     """What the batch executor needs to estimate, for T trials at once (see the module)."""
 
@@ -213,13 +219,16 @@ class Estimators(abc.ABC):
         calibrations: Calibrations,
         points: NDArray[np.float64],
         stops: NDArray[np.float64],
+        slots: NDArray[np.intp] | None = None,
     ) -> NDArray[np.float64]:
         """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of
         its (T, n, 3) points (NaN where not calibrated), to first order at the calibrated
         camera (:func:`calib.tsai_batch.covariance_from_point_errors`).
 
         The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its
-        LEDs share the marker's measured pose); rows past 3n are not in the data."""
+        LEDs share the marker's measured pose), in a layout of S k / 3 points: ``slots``
+        (n,) says where each point sits in it (default: the first n, in order; a stop that
+        shows only some LEDs leaves the others' rows out of the data)."""
 
     def truth_errors(
         self, calibrations: Calibrations, truth: TsaiCamera
@@ -366,13 +375,12 @@ class TrialByTrial(Estimators):
             pix[k], err[k] = m.pixel.mean, m.error_3d.mean
         return pix, err
 
-    def points_effect(self, calibrations, points, stops):
+    def points_effect(self, calibrations, points, stops, slots=None):
         out = np.full((len(points), 3, 3), np.nan)
-        n = points.shape[1]
         for k in np.flatnonzero(calibrations.calibrated):
             rows = np.flatnonzero(calibrations.kept[k])
-            cols = coordinate_rows(rows[None])[0]
-            joint = block_diagonal(stops[k : k + 1])[0, : 3 * n, : 3 * n]
+            cols = slot_rows(rows[None], slots)[0]
+            joint = block_diagonal(stops[k : k + 1])[0]
             cov = covariance_from_point_errors(
                 calibrations.cameras.camera(k), points[k][rows], joint[np.ix_(cols, cols)]
             )

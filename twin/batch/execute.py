@@ -18,14 +18,20 @@ The estimators are the campaign's (:mod:`twin.batch.estimators`): marker fits an
 CPS with its joint covariance and consistency tests, LED positions from the marker's pose,
 Tsai's calibration of every visit and the Table III metrics.
 
+A data point holds the LEDs the camera found in the noise-free plan (:class:`twin.batch.
+plan.Point`: all of them, or with ``campaign.data_stops = "accuracy"`` those the stop shows);
+the LEDs it did not find give no point and no pixel residual.
+
 What the batch leaves out, which the geometric fidelity keeps: decisions taken again under
 noise (a re-aim after a lost lock or a wrong prism; a stop where an LED left the image is
-given up, as the campaign does, but not replaced by another; a fix that failed its
-consistency test is not measured again: such a trial keeps its estimate and counts a
-failure), the faults of ``[faults]``, the check shots at a child placed earlier (which only
-matter when it moved), the tilt of a child on a tilted floor patch (its marker is moved in
-the plane), and the occlusion of an LED by an obstacle or a person (the plan's stops were
-chosen in the clear; the trials' stopping errors move them a few centimetres).
+given up, as the campaign does, but not replaced by another: with ``campaign.data_stops =
+"accuracy"`` only that LED is given up, an LED that came into view at a stop planned
+without it is not used, and the stops are not planned again from the noisy estimates; a fix
+that failed its consistency test is not measured again: such a trial keeps its estimate and
+counts a failure), the faults of ``[faults]``, the check shots at a child placed earlier
+(which only matter when it moved), the tilt of a child on a tilted floor patch (its marker
+is moved in the plane), and the occlusion of an LED by an obstacle or a person (the plan's
+stops were chosen in the clear; the trials' stopping errors move them a few centimetres).
 
 The executor advances one step of the plan at a time for all its trials (:meth:`BatchRun.
 step`), and :meth:`BatchRun.outcome` reads what the trials gave so far: a caller can run a
@@ -228,9 +234,12 @@ class VisitOutcome:
 
 @dataclass
 class _DataSet:
-    points: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 3) each
-    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, N_led, 2) each
+    """A data set's stops in T trials, in order: each stop's k <= N_led LED points."""
+
+    points: list[NDArray[np.float64]] = field(default_factory=list)  # (T, k, 3) each
+    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, k, 2) each
     covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, 3N_led)
+    leds: list[NDArray[np.intp]] = field(default_factory=list)  # (k,) each: which LEDs
     size: int | None = None
 
     def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -243,9 +252,17 @@ class _DataSet:
         return pts[:, :n], pix[:, :n]
 
     def stops(self) -> NDArray[np.float64]:
-        """(T, S, 3N_led, 3N_led) the covariance of each stop's LED points (the joint
-        covariance of the data set is block-diagonal: one block a stop)."""
+        """(T, S, 3N_led, 3N_led) the covariance of each stop's LEDs, all N_led of them
+        (the joint covariance of the data set is block-diagonal: one block a stop)."""
         return np.stack(self.covariances, axis=1)
+
+    def slots(self) -> NDArray[np.intp]:
+        """(n,) where each LED point sits in the layout of :meth:`stops` (S stops of N_led
+        LEDs): ``s N_led + led``; ``arange(n)`` when every stop holds every LED."""
+        if not self.leds:
+            return np.zeros(0, dtype=np.intp)
+        n_led = self.covariances[0].shape[-1] // 3
+        return np.concatenate([s * n_led + leds for s, leds in enumerate(self.leds)])
 
 
 class BatchRun:
@@ -460,19 +477,35 @@ class BatchRun:
         true = self._leds(step.child)
         pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(self.trials, -1, 2)
         # An LED is found when all of its blob lies in the image (as the camera's sensor
-        # has it); a trial that misses one gives up the stop and counts a failure.
+        # has it).
         distance = np.linalg.norm(true - camera.position, axis=2)
         margin = camera.f * self.plan.led_radii[step.child] / distance
         seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
-        lost = ~seen.reshape(self.trials, -1).all(axis=1)
-        self.failures += lost
+        seen = seen.reshape(self.trials, -1)
         pixels = pixels + self.led_px[step.camera] * self.draws.take(true.shape[1], 2)
-        world = np.where(lost[:, None, None], np.nan, world)
-        pixels = np.where(lost[:, None, None], np.nan, pixels)
+        leds = np.asarray(step.leds, dtype=np.intp)
+        if len(leds) < true.shape[1]:
+            # The LEDs the plan's camera found at this stop; the others give no point.
+            world, pixels, seen = world[:, leds], pixels[:, leds], seen[:, leds]
+        missed = self._missed(seen)
+        self.failures += missed.any(axis=1)
+        world = np.where(missed[..., None], np.nan, world)
+        pixels = np.where(missed[..., None], np.nan, pixels)
         data = self._dataset(step)
         data.points.append(world)
         data.pixels.append(pixels)
         data.covariances.append(turn @ cov_level @ np.swapaxes(turn, 1, 2))
+        data.leds.append(leds)
+
+    def _missed(self, seen: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """(T, k) which of a stop's k planned LEDs each trial gives up, from (T, k) which
+        it found: with ``campaign.data_stops = "all_leds"`` a trial that misses one gives
+        up the whole stop, with ``"accuracy"`` only the LEDs it missed (as the campaign
+        does). Either counts one failure a stop."""
+        if self.plan.scenario.campaign.data_stops == "accuracy":
+            return ~seen
+        lost = ~seen.all(axis=1)
+        return np.broadcast_to(lost[:, None], seen.shape)
 
     def _calibrate(self, step: Calibrate) -> None:
         data = self._dataset(step, "visit")
@@ -495,7 +528,11 @@ class BatchRun:
             cal.position_std,
             cal.sigma_px,
             self.advertised_led_px[step.camera],
-            np.trace(est.points_effect(cal, points, data.stops()), axis1=1, axis2=2),
+            np.trace(
+                est.points_effect(cal, points, data.stops(), data.slots()[: points.shape[1]]),
+                axis1=1,
+                axis2=2,
+            ),
         )
         self.visits[(step.camera, step.visit)] = VisitOutcome(
             points=np.isfinite(pixels).all(axis=2).sum(axis=1),

@@ -12,12 +12,16 @@ solves CPS as in a real run), and records, in the order they happen:
   from the standing parent), every fix of the parent (:class:`Fix`: three shots at each
   child it was solved from);
 - every data point (:class:`Point`: the child's LEDs seen by a camera at its last
-  placement), every data set and every calibration.
+  placement, and which of them the camera found: all of them with ``campaign.data_stops =
+  "all_leds"``, those in the image with ``"accuracy"``), every data set and every
+  calibration.
 
 The batch executes this plan for many trials at once (:mod:`twin.batch.execute`), each with
 its own noise. Decisions are not taken again under noise: where a trial's noise would
 change a decision of the campaign (a re-aim after a lost lock, another stop in place of one
-where an LED fell out of view, a retried fix), the batch keeps the noise-free decision.
+where an LED fell out of view, a retried fix, an LED that came into view at a stop planned
+without it, the stops for accuracy planned from noisy estimates), the batch keeps the
+noise-free decision.
 """
 
 from __future__ import annotations
@@ -100,12 +104,17 @@ class Fix:
 
 @dataclass(frozen=True)
 class Point:
-    """A camera found the LEDs of a child at its last placement: a data point."""
+    """A camera found the LEDs of a child at its last placement: a data point.
+
+    ``leds`` are the indices of the child's LEDs the camera found there without noise, in
+    order: the point's LED points (every LED with ``campaign.data_stops = "all_leds"``, a
+    stop's LEDs in the image with ``"accuracy"``)."""
 
     dataset: str
     camera: str
     visit: int
     child: str
+    leds: tuple[int, ...] = tuple(range(N_LEDS))
 
 
 @dataclass(frozen=True)
@@ -228,7 +237,6 @@ class PlanSession:
     """
 
     def __init__(self, scenario: Scenario, strategy: str | Strategy | None = None) -> None:
-        check_batch_data_stops(scenario)
         self.scenario = scenario
         self.strategy = (
             strategy if isinstance(strategy, Strategy) else strategy_for(scenario, strategy)
@@ -327,23 +335,6 @@ class PlanSession:
         self.close()
 
 
-def check_batch_data_stops(scenario: Scenario) -> None:
-    """Raise ValueError unless the batch can replay the scenario's data points.
-
-    With ``campaign.data_stops = "accuracy"`` most planned stops show only some of the
-    child's LEDs and give points with fewer LEDs; the batch replays a noise-free plan in
-    which every point holds all of a child's LEDs (a trial that misses one gives up the
-    stop), so it would drop nearly every such stop. Use the geometric or render fidelity.
-    """
-    if scenario.campaign.data_stops != "all_leds":
-        raise ValueError(
-            f"scenario {scenario.name!r}: campaign.data_stops = "
-            f"{scenario.campaign.data_stops!r} is not supported by the batch fidelity (it "
-            "replays points that show all of a child's LEDs); set campaign.data_stops = "
-            "'all_leds' or use the geometric or render fidelity"
-        )
-
-
 def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
     """Run the campaign of ``scenario`` once at the geometric fidelity without noise, every
     decision its strategy's, and record its plan (see the module).
@@ -365,6 +356,7 @@ class _StepParser:
         self.steps: list[Step] = []
         self.visits: list[tuple[str, int]] = []
         self._truth: dict[str, RobotTruth] = {}
+        self._found: dict[tuple[str, str], tuple[int, ...]] = {}  # (camera, child) -> LEDs
 
     def feed(self, records: list[tuple[str, Any]]) -> None:
         """Parse the next records, in order."""
@@ -382,8 +374,17 @@ class _StepParser:
             steps.append(Place(rec.child))
         elif topic == PARENT_FIX and rec.children:
             steps.append(Fix(tuple(rec.children)))
+        elif topic.startswith("/camera/") and topic.endswith("/leds"):
+            self._found[(rec.camera, rec.child)] = tuple(np.flatnonzero(rec.found).tolist())
         elif topic == POINT:
-            steps.append(Point(rec.dataset, rec.camera, rec.visit, rec.child))
+            leds = self._found.pop((rec.camera, rec.child), None)
+            if leds is None or len(leds) != len(rec.leds_world):
+                raise RuntimeError(
+                    f"data point of {rec.child} at {rec.camera} (visit {rec.visit}): "
+                    f"{len(rec.leds_world)} LED points, but the camera's last observation "
+                    f"found LEDs {leds}"
+                )
+            steps.append(Point(rec.dataset, rec.camera, rec.visit, rec.child, leds))
         elif topic == DATASET:
             steps.append(DataSetDone(rec.dataset, rec.camera, rec.visit, rec.points))
         elif topic == CALIBRATION:

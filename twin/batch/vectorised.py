@@ -43,8 +43,8 @@ from twin.batch.estimators import (
     ParentEstimates,
     by_count,
     calibrate_one,
-    coordinate_rows,
     found,
+    slot_rows,
 )
 from twin.instruments.marker_pose_batch import MarkerPoseBatch, led_positions_batch
 from twin.localization.input_checks import ConvergenceWarning
@@ -175,7 +175,7 @@ class Vectorised(Estimators):
                 np.where(n > 0, error.sum(axis=1) / n, np.nan),
             )
 
-    def points_effect(self, calibrations, points, stops):
+    def points_effect(self, calibrations, points, stops, slots=None):
         out = np.full((len(points), 3, 3), np.nan)
         for trials, rows in by_count(calibrations.kept & calibrations.calibrated[:, None]):
             if rows.shape[1] > 0:  # else not calibrated
@@ -183,7 +183,7 @@ class Vectorised(Estimators):
                     _select(calibrations.cameras, trials),
                     points[trials[:, None], rows],
                     stops[trials],
-                    coordinate_rows(rows),
+                    slot_rows(rows, slots),
                 )
         return out
 

@@ -56,8 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("all_leds", "accuracy"),
         default="all_leds",
         help="where the child stops for a camera's data: all_leds (where all its LEDs show, "
-        "the default) or accuracy (chosen to lower the camera's predicted error; the batch "
-        "fidelity does not run it)",
+        "the default) or accuracy (where some show, chosen to lower the camera's predicted "
+        "error)",
     )
     p.add_argument("--name", help="the scenario's name (default: the output file's stem)")
     p.add_argument(

@@ -757,7 +757,8 @@ class CampaignSettings(Frozen):
             least one LED shows, chosen greedily to lower the predicted covariance of the
             calibrated camera's position (:mod:`twin.campaign.plan.accurate_stops`); a stop
             where only some LEDs are found then gives a point with those (the others'
-            failures still journaled). The batch fidelity supports only ``all_leds``.
+            failures still journaled). Every fidelity supports both (the batch replays
+            each stop with the LEDs its noise-free plan found).
     """
 
     reference_cameras: tuple[Name, ...] | None = Field(default=None, max_length=MAX_CAMERAS)

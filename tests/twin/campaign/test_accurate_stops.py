@@ -183,10 +183,3 @@ def test_points_variance_with_stops_of_different_led_counts():
         TsaiCameras.from_cameras([cam]), pts[None], joint[None, None]
     )
     np.testing.assert_allclose(got, np.trace(want[0]), rtol=1e-9)
-
-
-def test_the_batch_fidelity_refuses_accuracy_stops(smoke):
-    from twin.batch.plan import record_plan
-
-    with pytest.raises(ValueError, match=r"campaign\.data_stops"):
-        record_plan(_with(smoke, "accuracy"))

@@ -19,6 +19,8 @@ from gymnasium.wrappers import FlattenObservation
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.policies import POLICIES, policy_named
+from twin.scenario import load_scenario
+from twin.scenario.overrides import with_values
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"
@@ -78,6 +80,23 @@ def test_check_env_passes_without_warnings():
     assert frame.ndim == 3
     assert frame.shape[2] == 3
     env.close()
+
+
+def test_a_scenario_with_accuracy_stops_runs():
+    # campaign.data_stops = "accuracy": the episode's trial replays stops that show only
+    # some LEDs; the paper's moves calibrate the camera at a lower predicted error.
+    predicted = {}
+    for stops in ("all_leds", "accuracy"):
+        scenario = with_values(load_scenario(SMOKE), {"campaign.data_stops": stops})
+        env = gymnasium.make(f"twin.envs:{ENV_ID}", scenario=scenario).unwrapped
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_env(env)
+        _, _, infos = rollout(env, 7, policy="paper")
+        assert infos[-1]["camera_errors_mm"], "the smoke room's camera is calibrated"
+        predicted[stops] = np.mean([s.predicted_error for s in env.camera_states()])
+        env.close()
+    assert predicted["accuracy"] < 0.5 * predicted["all_leds"], predicted
 
 
 def test_metadata_declares_headless_modes_and_autoreset():
