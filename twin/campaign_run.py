@@ -3,8 +3,8 @@ a run that does not depend on the backend (the twin's :mod:`twin.runner`, real d
 :mod:`twin.hardware_run`).
 
 - ``DIR/log.mcap`` (every reading, as it arrives), ``DIR/results.json``, ``DIR/cameras/``
-  (JSON, OpenCV YAML, ROS camera_info per calibration), ``DIR/figures/`` and
-  ``DIR/report.md``.
+  (JSON with the camera's covariance, OpenCV YAML, ROS camera_info per calibration),
+  ``DIR/figures/`` and ``DIR/report.md``.
 """
 
 from __future__ import annotations
@@ -104,9 +104,18 @@ RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
 
 def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:
     """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
-    ``.camera_info.yaml`` (ROS) in ``folder``."""
-    from twin.campaign.records import CALIBRATION
+    ``.camera_info.yaml`` (ROS) in ``folder``.
 
+    A Tsai camera's JSON file also holds its covariance in W (``covariance``: see
+    :mod:`calib.camera_covariance`), propagated from its visit's data as the log holds
+    them (:func:`twin.logged_points.calibration_covariances`): what ``twin check`` weighs
+    the calibration's own error by.
+    """
+    from twin.campaign.records import CALIBRATION
+    from twin.logged_points import calibration_covariances
+
+    messages = list(messages)
+    covariances = calibration_covariances(messages)
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for m in messages:
@@ -114,8 +123,9 @@ def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[
             continue
         camera = camera_from_dict(m.data["camera_model"], "calibration")
         stem = f"{m.data['camera']}_visit{m.data['visit']}"
+        cov = covariances.get((m.data["camera"], int(m.data["visit"])))
         for suffix in (".json", ".yaml", ".camera_info.yaml"):
             path = folder / f"{stem}{suffix}"
-            save_camera(camera, path, name=m.data["camera"])
+            save_camera(camera, path, name=m.data["camera"], covariance=cov)
             written.append(path)
     return written

@@ -1,4 +1,5 @@
-"""Run the calibration campaign of a scenario on real devices (or on emulated ones).
+"""Run the calibration campaign of a scenario on real devices (or on emulated ones), or
+check a run's calibrated cameras on them (:func:`check_on_rig`).
 
 The devices come from a rig file (:mod:`twin.drivers.rig_file`); the scenario still gives
 the map, the cameras' nominal poses, the route, the visits and the instrument's noise. The
@@ -15,10 +16,13 @@ from pathlib import Path
 from typing import Any
 
 from twin.campaign import Progress
+from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
 from twin.campaign_run import run_campaign
+from twin.check_run import run_check
 from twin.drivers.build import build_rig
 from twin.drivers.rig_file import RigFile, RigFileError, load_rig_file
+from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.record import McapRecorder
 from twin.scenario import Scenario, load_scenario
@@ -66,19 +70,92 @@ def run_on_rig(
     }
 
     def open_rig(log: McapRecorder) -> tuple[Rig, Callable[[], None], dict[str, float]]:
-        devices = build_rig(rig, sc)
-        try:
-            for name, identity in devices.identities.items():
-                log.record(DEVICE, {"device": name, **_plain(identity)}, 0.0)
-            for name, camera in truth.items():
-                log.record(TRUTH_CAMERA, {"name": name, "camera": camera}, 0.0)
-        except BaseException:
-            devices.close()
-            raise
-        return devices.rig, devices.close, devices.rig.timings
+        devices, close = _open_devices(rig, sc, truth, log)
+        return devices, close, devices.timings
 
     meta = {"fidelity": "hardware", "rig": rig.source or rig.name, "seed": sc.seed}
     return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
+
+
+def check_on_rig(
+    scenario: Scenario | str | Path,
+    rig_file: RigFile | str | Path,
+    cameras_dir: str | Path,
+    out_dir: str | Path,
+    *,
+    stops: int = DEFAULT_STOPS,
+    false_alarm_rate: float = DEFAULT_FALSE_ALARM_RATE,
+    min_pixel_sigma: float = MIN_PIXEL_SIGMA,
+    progress: Callable[[Progress], None] | None = None,
+    strategy: str | None = None,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Check on the devices of ``rig_file`` whether the cameras a run calibrated
+    (``cameras_dir``) are still where their calibrations say (:func:`twin.check_run.
+    run_check`). The parent must stand where it stood at the calibration's first station,
+    heading as it did: that station defines W.
+
+    Args:
+        scenario, rig_file: as :func:`run_on_rig`. cameras_dir, out_dir, stops,
+            false_alarm_rate, min_pixel_sigma, progress, strategy, overwrite: as
+            :func:`twin.runner.check_scenario`.
+
+    Raises:
+        twin.drivers.rig_file.RigFileError: the rig file is bad or lacks a device the
+            scenario needs; twin.run_cameras.CamerasFolderError, ValueError,
+            twin.outputs.OutputError: as :func:`twin.check_run.run_check` (nothing is
+            written). twin.drivers.build.DeviceConnectError: a device could not be opened
+            (the log so far is kept).
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    rig = rig_file if isinstance(rig_file, RigFile) else load_rig_file(rig_file)
+    chosen = strategy_for(sc, strategy)
+    truth = emulated_truth(rig)
+    arguments = {
+        "scenario": sc.source or sc.name,
+        "cameras": str(cameras_dir),
+        "rig": rig.source or rig.name,
+        "stops": stops,
+        "false_alarm_rate": false_alarm_rate,
+        "min_pixel_sigma": min_pixel_sigma,
+        "strategy": chosen.name,
+    }
+
+    def open_rig(log: Recorder) -> tuple[Rig, Callable[[], None]]:
+        return _open_devices(rig, sc, truth, log)
+
+    meta = {"fidelity": "hardware", "rig": rig.source or rig.name}
+    return run_check(
+        sc,
+        cameras_dir,
+        out_dir,
+        arguments,
+        meta,
+        open_rig,
+        chosen,
+        stops=stops,
+        false_alarm_rate=false_alarm_rate,
+        min_pixel_sigma=min_pixel_sigma,
+        progress=progress,
+        overwrite=overwrite,
+    )
+
+
+def _open_devices(
+    rig: RigFile, sc: Scenario, truth: dict[str, dict[str, Any]], log: Recorder
+) -> tuple[Rig, Callable[[], None]]:
+    """The rig file's devices, opened; what each said about itself and the emulated
+    truth recorded first. Returns the devices and what closes them."""
+    devices = build_rig(rig, sc)
+    try:
+        for name, identity in devices.identities.items():
+            log.record(DEVICE, {"device": name, **_plain(identity)}, 0.0)
+        for name, camera in truth.items():
+            log.record(TRUTH_CAMERA, {"name": name, "camera": camera}, 0.0)
+    except BaseException:
+        devices.close()
+        raise
+    return devices.rig, devices.close
 
 
 def emulated_truth(rig: RigFile) -> dict[str, dict[str, Any]]:

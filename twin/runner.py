@@ -10,6 +10,9 @@ that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
 
 - ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
   calibration), ``DIR/figures/`` and ``DIR/report.md``.
+
+:func:`check_scenario` builds the same simulated rig for ``twin check``
+(:mod:`twin.check_run`): the calibrated cameras checked where the twin's world holds them.
 """
 
 from __future__ import annotations
@@ -22,8 +25,11 @@ import numpy as np
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Progress
+from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
 from twin.campaign_run import RUN_OUTPUTS, run_campaign, write_cameras
+from twin.check_run import run_check
+from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder
@@ -109,6 +115,96 @@ def run_scenario(
     return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
 
 
+def check_scenario(
+    scenario: Scenario | str | Path,
+    cameras_dir: str | Path,
+    out_dir: str | Path,
+    *,
+    fidelity: str = "render",
+    seed: int | None = None,
+    stops: int = DEFAULT_STOPS,
+    false_alarm_rate: float = DEFAULT_FALSE_ALARM_RATE,
+    min_pixel_sigma: float = MIN_PIXEL_SIGMA,
+    progress: Callable[[Progress], None] | None = None,
+    strategy: str | None = None,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Check in the twin whether the cameras a run calibrated (``cameras_dir``) are still
+    where their calibrations say; write ``log.mcap``, ``check.json`` and the moved cameras'
+    files in ``out_dir`` (:func:`twin.check_run.run_check`).
+
+    The twin's world is the scenario's, ``faults.moved_cameras`` included: a camera moved
+    there is where the check finds it.
+
+    Args:
+        scenario: a scenario or its file. cameras_dir: the ``cameras/`` folder a run wrote.
+        out_dir: the check's folder. fidelity: ``render`` or ``geometric``.
+        seed: the twin's seed, as ``twin run --seed`` (default: the scenario's): give the
+            calibration run's, so that the world (the markers as built) is the same. The
+            check's noise is drawn from streams of its own (:func:`check_noise_seed`).
+        stops, false_alarm_rate, min_pixel_sigma: as
+            :func:`twin.campaign.check.check_cameras`.
+        progress, strategy, overwrite: as :func:`run_scenario`.
+
+    Raises:
+        ValueError: an unknown fidelity or strategy, a seed, stops or false-alarm rate out
+            of range; twin.run_cameras.CamerasFolderError: a cameras folder that cannot
+            be checked; twin.outputs.OutputError: ``out_dir`` cannot be used. Nothing is
+            written for any of these.
+    """
+    if fidelity not in FIDELITIES:
+        raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if seed is not None:
+        sc = sc.model_copy(update={"seed": check_seed(seed)})
+    chosen = strategy_for(sc, strategy)
+    noise_seed = check_noise_seed(sc.seed)
+    arguments = {
+        "scenario": sc.source or sc.name,
+        "cameras": str(cameras_dir),
+        "fidelity": fidelity,
+        "seed": sc.seed,
+        "stops": stops,
+        "false_alarm_rate": false_alarm_rate,
+        "min_pixel_sigma": min_pixel_sigma,
+        "strategy": chosen.name,
+    }
+
+    def open_rig(log: Recorder) -> tuple[Rig, Callable[[], None]]:
+        world = build_world(sc, markers=built_markers(sc))
+        sim = build_sim_rig(world, fidelity, seed=noise_seed, truth=log)
+        return sim.rig, sim.close
+
+    meta = {"fidelity": fidelity, "seed": sc.seed, "noise_seed": noise_seed}
+    return run_check(
+        sc,
+        cameras_dir,
+        out_dir,
+        arguments,
+        meta,
+        open_rig,
+        chosen,
+        stops=stops,
+        false_alarm_rate=false_alarm_rate,
+        min_pixel_sigma=min_pixel_sigma,
+        progress=progress,
+        overwrite=overwrite,
+    )
+
+
+CHECK_STREAM = 7
+"""Spawn key of the root seed of a check's noise (:func:`check_noise_seed`)."""
+
+
+def check_noise_seed(seed: int) -> int:
+    """The root seed of the noise of a check in the twin whose world has seed ``seed``: a
+    seed of its own, so that a check's instrument and LED noise is not the calibration
+    run's (whose noise, keyed to what each shot measures, it would repeat where it
+    measures the same places)."""
+    state = np.random.SeedSequence(seed, spawn_key=(CHECK_STREAM,)).generate_state(1, np.uint64)
+    return int(state[0] >> np.uint64(1))
+
+
 MARKER_STREAM = 4
 """Spawn key of the random stream of the marker assemblies' surveying errors."""
 
@@ -131,4 +227,11 @@ def built_markers(scenario: Scenario) -> dict[str, MarkerAssembly]:
     return out
 
 
-__all__ = ["RUN_OUTPUTS", "built_markers", "run_scenario", "write_cameras"]
+__all__ = [
+    "RUN_OUTPUTS",
+    "built_markers",
+    "check_noise_seed",
+    "check_scenario",
+    "run_scenario",
+    "write_cameras",
+]

@@ -2,7 +2,10 @@
 
 The format follows the file name:
 
-* ``*.json``: the full model (Tsai or OpenCV) with its pose, exactly round-tripped;
+* ``*.json``: the full model (Tsai or OpenCV) with its pose, exactly round-tripped, and
+  optionally the camera's covariance (``covariance``: ``parameters``, the names of
+  :data:`calib.camera_covariance.CAMERA_PARAMETERS`, and ``matrix``, 11 x 11; read with
+  :func:`load_camera_covariance`);
 * ``*.camera_info.yaml``: ROS ``sensor_msgs/CameraInfo`` (intrinsics only, no pose);
 * ``*.yaml`` / ``*.yml``: OpenCV FileStorage with ``camera_matrix``,
   ``distortion_coefficients`` and the world-to-camera pose.
@@ -23,6 +26,7 @@ import numpy as np
 import yaml
 
 from calib.camera import TsaiCamera
+from calib.camera_covariance import CAMERA_PARAMETERS, check_camera_covariance
 from calib.io.atomic import atomic_file
 from calib.opencv_camera import OpenCVCamera, tsai2opencv
 
@@ -174,25 +178,78 @@ def _read_ros_yaml(path: Path) -> OpenCVCamera:
 
 
 # -- dispatch ------------------------------------------------------------------------------
-def save_camera(camera: Camera, path: str | Path, name: str = "camera") -> None:
+def save_camera(
+    camera: Camera,
+    path: str | Path,
+    name: str = "camera",
+    covariance: np.ndarray | None = None,
+) -> None:
     """Write a camera; the format follows the file name (see the module docstring).
 
     Missing folders are created. The file is written whole or not at all
     (:func:`calib.io.atomic.atomic_file`).
 
+    Args:
+        camera: the camera. path: the file. name: the camera's name (ROS files).
+        covariance: (11, 11) the camera's covariance in the terms of
+            :data:`calib.camera_covariance.CAMERA_PARAMETERS`, written into a JSON file
+            (a Tsai camera's only; the other formats have no place for it).
+
     Raises:
-        ValueError: an unknown file type. OSError: the file cannot be written.
+        ValueError: an unknown file type, or a covariance that is not an 11 x 11 symmetric
+            matrix. OSError: the file cannot be written.
     """
     path = Path(path)
     fmt = camera_format(path)
+    data = camera_to_dict(camera)
+    if covariance is not None and fmt == "json":
+        data["covariance"] = covariance_to_dict(covariance)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:
         if fmt == "json":
-            tmp.write_text(json.dumps(camera_to_dict(camera), indent=2) + "\n")
+            tmp.write_text(json.dumps(data, indent=2) + "\n")
         elif fmt == "ros":
             _write_ros_yaml(tmp, camera, name)
         else:
             _write_opencv_yaml(tmp, camera)
+
+
+def covariance_to_dict(covariance: np.ndarray) -> dict[str, Any]:
+    """A camera's (11, 11) covariance as the JSON file holds it."""
+    cov = check_camera_covariance(covariance)
+    return {"parameters": list(CAMERA_PARAMETERS), "matrix": cov.tolist()}
+
+
+def load_camera_covariance(path: str | Path) -> np.ndarray | None:
+    """The (11, 11) covariance a camera JSON file holds (see :func:`save_camera`), or None
+    when it holds none (or the file is not JSON).
+
+    Raises:
+        ValueError: the file is not valid JSON, or its covariance names other parameters
+            or is not an 11 x 11 symmetric matrix of finite numbers; the message names the
+            file.
+    """
+    path = Path(path)
+    if camera_format(path) != "json":
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: invalid JSON ({exc})") from None
+    block = data.get("covariance") if isinstance(data, dict) else None
+    if block is None:
+        return None
+    if not isinstance(block, dict) or "matrix" not in block:
+        raise ValueError(f"{path}: covariance must be an object with parameters and matrix")
+    names = block.get("parameters")
+    if names != list(CAMERA_PARAMETERS):
+        raise ValueError(
+            f"{path}: covariance.parameters must be {list(CAMERA_PARAMETERS)}, got {names!r}"
+        )
+    try:
+        return check_camera_covariance(block["matrix"], f"{path}: covariance.matrix")
+    except (TypeError, ValueError) as exc:
+        raise ValueError(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
 
 
 def load_camera(path: str | Path) -> Camera:

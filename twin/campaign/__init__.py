@@ -14,6 +14,9 @@ Decisions and their execution are apart:
   records; :mod:`.log_results`: a run's results from its log.
 - :mod:`.plan`: the geometry the strategies decide with: the route, the legs, the
   formation, the view stops, clearance and prisms hidden by their own assembly.
+- :mod:`.check`: ``twin check``: the campaign's steps with a few stops per camera, a
+  chi-square test of each camera against its calibration, and a re-pose of those that
+  moved.
 
 This package imports ``twin.hal``, ``twin.localization``, ``twin.instruments`` (the
 instrument's measurement models and errors), ``twin.scenario`` (the plan and the map) and

@@ -22,6 +22,7 @@ _COMMANDS = [
     "render",
     "detect",
     "run",
+    "check",
     "montecarlo",
     "strategies",
     "site",

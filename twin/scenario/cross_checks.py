@@ -16,7 +16,9 @@
   can walk past a low structure), and their names differ from the robots';
 - every calibration visit names a camera, and from its station the total station sees at
   least ``calibration.min_visible_fraction`` of the camera's view of the floor (line of
-  sight to the corner cubes of a child standing there, within the instrument's range).
+  sight to the corner cubes of a child standing there, within the instrument's range);
+- every moved camera (``faults.moved_cameras``) names a camera, once, and stays inside
+  the space.
 """
 
 from __future__ import annotations
@@ -66,6 +68,49 @@ def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
     issues += _check_visits(sc)
     issues += _check_people(sc)
     issues += _check_campaign(sc)
+    issues += _check_moved_cameras(sc)
+    return issues
+
+
+def _check_moved_cameras(sc: Scenario) -> list[ScenarioIssue]:
+    """``faults.moved_cameras``: each names a camera of the scenario, once, and leaves it
+    inside the space."""
+    issues = []
+    names = [c.name for c in sc.cameras]
+    seen: set[str] = set()
+    (x0, x1), (y0, y1) = sc.space.x_range, sc.space.y_range
+    z0, z1 = sc.space.z_range
+    for i, fault in enumerate(sc.faults.moved_cameras):
+        key = f"faults.moved_cameras[{i}]"
+        if fault.camera not in names:
+            issues.append(
+                ScenarioIssue(
+                    f"{key}.camera", "unknown camera", fault.camera, f"one of {', '.join(names)}"
+                )
+            )
+            continue
+        if fault.camera in seen:
+            issues.append(
+                ScenarioIssue(
+                    f"{key}.camera",
+                    "camera moved twice",
+                    fault.camera,
+                    "one entry per camera (add the shifts and turns into one)",
+                )
+            )
+            continue
+        seen.add(fault.camera)
+        x, y, z = fault.moved(sc.camera(fault.camera).tsai()).position
+        if not (x0 <= x <= x1 and y0 <= y <= y1 and z0 < z < z1):
+            issues.append(
+                ScenarioIssue(
+                    f"{key}.shift",
+                    f"camera {fault.camera!r} moves outside the space",
+                    list(fault.shift),
+                    f"a shift that keeps it in x [{x0:g}, {x1:g}], y [{y0:g}, {y1:g}], "
+                    f"z ({z0:g}, {z1:g}) m",
+                )
+            )
     return issues
 
 

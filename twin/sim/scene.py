@@ -1,9 +1,10 @@
 """Composing a scenario into a MuJoCo model (:class:`mujoco.MjSpec`).
 
 The scene is built in code: the space (:mod:`twin.sim.hall`), one attached device per
-robot (prefix ``NAME/``), one fixed camera per scenario camera (its name as given) and the
-people walking by. The MuJoCo world frame *is* the twin's world frame W (the parent's
-instrument frame at its start, z up); the floor lies at ``scenario.space.floor_z``.
+robot (prefix ``NAME/``), one fixed camera per scenario camera (its name as given; where
+``faults.moved_cameras`` moves it, at its moved pose) and the people walking by. The
+MuJoCo world frame *is* the twin's world frame W (the parent's instrument frame at its
+start, z up); the floor lies at ``scenario.space.floor_z``.
 :class:`twin.sim.world.World` runs the compiled model.
 """
 
@@ -59,7 +60,9 @@ def build_spec(
         mine = (markers or {}).get(robot.name, marker)
         attach_robot(spec, robot, scenario.space.floor_z, mine)
     for cam in scenario.cameras:
-        add_camera(spec.worldbody, cam.name, cam.tsai())
+        moved = scenario.faults.moved_camera(cam.name)
+        pose = cam.tsai() if moved is None else moved.moved(cam.tsai())
+        add_camera(spec.worldbody, cam.name, pose)
     for person in scenario.people:
         add_person(spec, person, scenario.space.floor_z)
     return spec
