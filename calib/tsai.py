@@ -161,6 +161,51 @@ def pixel_jacobian(camera: TsaiCamera, points_3d: ArrayLike) -> NDArray[np.float
     return _pixel_jacobian(p3, camera.image_size)(_pack(camera)).reshape(len(p3), 2, N_TSAI)
 
 
+def tsai_vector(camera: TsaiCamera) -> NDArray[np.float64]:
+    """The (11,) parameter vector a calibration optimises (see :func:`pixel_jacobian`):
+    f, cx, cy, sx (px, px, px, -), kappa1 times the squared half-diagonal of the image (-),
+    the world-to-camera rotation vector (rad) and the optical centre in the world (m)."""
+    return _pack(camera)
+
+
+def tsai_from_vector(q: ArrayLike, image_size: tuple[int, int]) -> TsaiCamera:
+    """The camera of an (11,) parameter vector (:func:`tsai_vector`'s inverse)."""
+    return _unpack(np.asarray(q, dtype=float), check_image_size(image_size))
+
+
+def tsai_pixels_and_jacobian(
+    q: ArrayLike, points_3d: ArrayLike, image_size: tuple[int, int]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Projected pixels and their derivatives with respect to the parameter vector.
+
+    Args:
+        q: (11,) parameters (:func:`tsai_vector`). points_3d: (N, 3) world points, m.
+        image_size: (width, height), px.
+
+    Returns:
+        (N, 2) pixels (NaN behind the camera) and the (N, 2, 11) Jacobian, px per
+        parameter. The derivative with respect to a world point is minus the last three
+        columns.
+    """
+    x = np.asarray(q, dtype=float)
+    p3 = np.asarray(points_3d, dtype=float).reshape(-1, 3)
+    kscale = _kappa_scale(image_size)
+    jac = _pixel_jacobian(p3, image_size)(x).reshape(len(p3), 2, N_TSAI)
+    return _project_q(x, p3, kscale), jac
+
+
+def tsai_reported(
+    q: ArrayLike, covariance: ArrayLike, image_size: tuple[int, int]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """An (11,) parameter vector and its (11, 11) covariance in the reported parameters
+    (``TSAI_PARAMETERS``: rotation as Euler angles, kappa1 in 1/px^2), as a calibration
+    reports them."""
+    x = np.asarray(q, dtype=float)
+    kscale = _kappa_scale(image_size)
+    cov = _reported_covariance(np.asarray(covariance, dtype=float), x, kscale)
+    return _reported(x, kscale), cov
+
+
 def calibrate_tsai(
     points_3d: ArrayLike,
     pixels: ArrayLike,
