@@ -18,6 +18,7 @@ from typing import Any
 
 from calib.io.camera_files import camera_from_dict, save_camera
 from twin.campaign import Campaign, Progress
+from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
 from twin.campaign.log_results import META, SUMMARY, results_from_log
 from twin.campaign.strategy import Strategy
 from twin.hal.recording import recorded
@@ -90,6 +91,7 @@ def run_campaign(
             close()
     messages = read_log(log_path).messages
     results = results_from_log(messages, sc.campaign.pixel_size_mm)
+    results.update(adjusted_results(messages, **adjustment_settings(sc)))
     write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
     write_cameras(results, messages, out / "cameras")
     if report:

@@ -17,7 +17,9 @@ from typing import Any
 
 from calib import calibrate_opencv, calibrate_tsai
 from calib.io.camera_files import camera_from_dict, camera_to_dict
+from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
 from twin.campaign.log_results import META, point_arrays, results_from_log
+from twin.campaign.network_log import CAMERA_MODES
 from twin.campaign.records import CALIBRATION, POINT
 from twin.campaign_run import write_cameras
 from twin.outputs import claim_folder, write_text_atomic
@@ -40,6 +42,7 @@ def replay_log(
     scenario: Scenario | str | Path | None = None,
     report: bool = True,
     overwrite: bool = False,
+    adjust: str | None = "auto",
 ) -> dict[str, Any]:
     """Compute a run's results again from its log and write them in ``out_dir``.
 
@@ -51,16 +54,32 @@ def replay_log(
         scenario: the scenario for the report's figures (default: the file the log names).
         report: write the figures and ``report.md`` (needs the scenario).
         overwrite: replace what an earlier replay wrote in ``out_dir``.
+        adjust: adjust the whole network (:mod:`twin.campaign.adjusted_results`), a camera
+            visited twice being one camera (``shared``, as a run does) or one per visit
+            (``per_visit``: tied through control points only); None: no adjustment;
+            ``auto`` (default): ``shared`` in Tsai's model, none in OpenCV's. With
+            the scenario, its pixel noise weighs the pixels; without, each camera's
+            calibration residual does.
 
     Returns:
         The results (also in ``results.json``).
 
     Raises:
-        ValueError: an unknown model, or a log that holds no run.
+        ValueError: an unknown model or adjustment, a log that holds no run, or an
+            adjustment asked for with ``model="opencv"`` (it adjusts Tsai's model).
         twin.scenario.ScenarioError: the scenario cannot be read.
     """
     if model not in MODELS:
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    if adjust == "auto":
+        adjust = "shared" if model == "tsai" else None
+    if adjust is not None and adjust not in CAMERA_MODES:
+        raise ValueError(f"adjust must be one of {CAMERA_MODES} or None, got {adjust!r}")
+    if adjust is not None and model != "tsai":
+        raise ValueError(
+            "the adjustment works in Tsai's model: replay with model tsai to adjust, or "
+            "without adjusting to refit in OpenCV's"
+        )
     contents = read_log(log)
     messages = list(contents.messages)
     meta = next((m.data for m in messages if m.topic == META), None)
@@ -78,6 +97,9 @@ def replay_log(
     out = folder.path
     pixel_size = sc.campaign.pixel_size_mm if sc is not None else 0.015
     results = results_from_log(messages, pixel_size)
+    if adjust is not None:
+        settings = adjustment_settings(sc) if sc is not None else {"pixel_size_mm": pixel_size}
+        results.update(adjusted_results(messages, cameras=adjust, **settings))
     results["replayed_from"] = str(log)
     results["model"] = model
     write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")

@@ -56,6 +56,7 @@ from twin.batch.estimators import (
     ParentEstimates,
     found,
 )
+from twin.batch.network import NetworkRecorder
 from twin.batch.plan import (
     BatchPlan,
     Calibrate,
@@ -278,6 +279,8 @@ class BatchRun:
             plan's cameras with ``noise``.
         estimators: the estimators (default: :class:`twin.batch.vectorised.Vectorised`,
             the campaign's own as array code).
+        record_network: keep what each trial measured for its global adjustment
+            (:attr:`network`, :mod:`twin.batch.network`).
     """
 
     def __init__(
@@ -287,7 +290,9 @@ class BatchRun:
         noise: Noise | None = None,
         estimators: Estimators | None = None,
         led_px: Mapping[str, float] | None = None,
+        record_network: bool = False,
     ) -> None:
+        self.network = NetworkRecorder() if record_network else None
         if estimators is None:
             estimators = Vectorised()
         sc = plan.scenario
@@ -434,6 +439,8 @@ class BatchRun:
     def _place(self, child: str) -> None:
         obs = self._observe(child)
         self.cps.children_moved(child, obs)
+        if self.network is not None:
+            self.network.stand(child, obs.point, obs.covariance, self.cps.child_position(child))
         parent = self.cps.parent
         # The child's localisation is corrected from its marker's pose (as the campaign does).
         r = parent.rotation @ obs.rotation
@@ -453,6 +460,9 @@ class BatchRun:
         )
         centre, _ = self._instrument()
         self._record_fix(centre)
+        if self.network is not None:
+            for child, obs in observations:
+                self.network.sight(child, obs.point, obs.covariance)
 
     def _record_fix(self, true_centre: NDArray[np.float64] | None) -> None:
         parent = self.cps.parent
@@ -461,6 +471,8 @@ class BatchRun:
             self.distance = self.distance + np.linalg.norm(parent.translation[:, :2] - last, axis=1)
         truth = np.zeros((self.trials, 3)) if true_centre is None else true_centre
         self.fixes.append((parent, np.broadcast_to(truth, (self.trials, 3))))
+        if self.network is not None:
+            self.network.station(parent.yaw, parent.translation)
 
     # -- data and calibrations -------------------------------------------------------------
     def _dataset(self, step: Point | DataSetDone | Calibrate, name: str | None = None) -> _DataSet:
@@ -495,6 +507,10 @@ class BatchRun:
         data.points.append(world)
         data.pixels.append(pixels)
         data.covariances.append(turn @ cov_level @ np.swapaxes(turn, 1, 2))
+        if self.network is not None and getattr(step, "dataset", "visit") == "visit":
+            rows = (3 * leds[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
+            cov = data.covariances[-1][:, rows][:, :, rows]
+            self.network.stop(step.camera, step.visit, world, cov, pixels)
         data.leds.append(leds)
 
     def _missed(self, seen: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -516,6 +532,10 @@ class BatchRun:
         truth = self.plan.cameras[step.camera]
         est = self.estimators
         cal = est.calibrate(points, pixels, truth.image_size, step.nominal)
+        if self.network is not None:
+            self.network.calibrated(
+                step.camera, step.visit, cal.cameras, cal.calibrated, step.points
+            )
         position_error, rotation_error = est.truth_errors(cal, truth)
         local = est.evaluate(cal, points, pixels)
         reference = self.datasets.get(("reference", step.camera, 0))

@@ -10,7 +10,7 @@ events (something the campaign did that is not a fault).
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from twin.campaign.records import (
     CALIBRATION,
     CHILD_PLACED,
+    CONTROL_SIGHTING,
     DATASET,
     EVENT,
     FAILURE,
@@ -30,6 +31,7 @@ from twin.campaign.records import (
     CalibrationRecord,
     CampaignEvent,
     ChildPlaced,
+    ControlSighting,
     DataPoint,
     DataSet,
     Failure,
@@ -39,6 +41,7 @@ from twin.campaign.records import (
 )
 from twin.hal.devices import Clock
 from twin.hal.recording import Recorder
+from twin.localization.observation import ChildObservation
 from twin.localization.pose import ParentPose
 
 
@@ -129,9 +132,9 @@ class Journal:
         """The parent's travel from fix to fix so far, m."""
         return self._distance
 
-    def parent_fix(self, pose: ParentPose, children: tuple[str, ...] = ()) -> None:
-        """The parent's pose after a CPS step (from ``children``), or at its first
-        station."""
+    def parent_fix(self, pose: ParentPose, observed: Sequence[ChildObservation] = ()) -> None:
+        """The parent's pose after a CPS step (from the children ``observed``), or at its
+        first station."""
         if self._fixes == 0:
             self._distance = 0.0
         else:
@@ -146,7 +149,9 @@ class Journal:
                 pose.translation,
                 pose.covariance,
                 self._distance,
-                tuple(children),
+                tuple(o.child for o in observed),
+                np.array([o.point_level for o in observed]).reshape(-1, 3),
+                np.array([o.covariance for o in observed]).reshape(-1, 3, 3),
             ),
         )
         self._fixes += 1
@@ -162,6 +167,10 @@ class Journal:
         self._record(
             CHILD_PLACED, ChildPlaced(self.clock.now(), child, point_level, covariance, world)
         )
+
+    def control_sighting(self, sighting: ControlSighting) -> None:
+        """A control point measured from the parent's current station."""
+        self._record(CONTROL_SIGHTING, sighting)
 
     def point(self, point: DataPoint) -> None:
         """A data point of a camera."""

@@ -100,6 +100,74 @@ def _parameters(camera: Any, pixel_size_mm: float) -> dict[str, Any]:
     return out
 
 
+def visit_points(
+    points: list[Mapping[str, Any]], camera: str, visit: int, n: int
+) -> tuple[NDArray, NDArray, NDArray]:
+    """The first ``n`` LED points of a visit's data points (the calibration's data set):
+    (n, 3) points, (n, 2) pixels and (K, 2) child positions."""
+    mine = [
+        p
+        for p in points
+        if p["dataset"] == "visit" and p["camera"] == camera and p["visit"] == visit
+    ]
+    pts, pix, xy = point_arrays(mine)
+    return pts[:n], pix[:n], xy
+
+
+def calibration_entry(
+    rec: Mapping[str, Any],
+    camera: Any,
+    std: Mapping[str, float],
+    data: tuple[NDArray, NDArray, NDArray],
+    references: Mapping[str, tuple[NDArray, NDArray]],
+    truths: Mapping[str, Any],
+    pixel_size_mm: float,
+) -> dict[str, Any]:
+    """One calibration as ``results.json`` lists it.
+
+    Args:
+        rec: the calibration's record (``CalibrationRecord`` fields). camera: the camera.
+        std: its parameters' standard deviations by name (SI).
+        data: the visit's (N, 3) LED points, (N, 2) pixels and (K, 2) child positions.
+        references: each camera's reference data set (points, pixels).
+        truths: the true cameras by name (a simulation's). pixel_size_mm: for kappa1.
+    """
+    cam_name = rec["camera"]
+    pts, pix, xy = data
+    ref = references.get(cam_name)
+    return {
+        "camera": cam_name,
+        "visit": rec["visit"],
+        "station": _array(rec["station"]).tolist(),
+        "distance_travelled_m": rec["distance_travelled"],
+        "points": rec["points"],
+        "sigma_px": rec["sigma_px"],
+        "parameters": _parameters(camera, pixel_size_mm),
+        "std": dict(std),
+        "errors": {
+            "world": _errors(camera, *ref) if ref is not None else None,
+            "local": _errors(camera, pts, pix),
+        },
+        "truth": _truth(camera, truths[cam_name]) if cam_name in truths else None,
+        "residuals_px": (pix - camera.project(pts)).tolist() if len(pts) else [],
+        "data_points_xy": xy.tolist(),
+    }
+
+
+def reference_sets(
+    points: list[Mapping[str, Any]], sizes: Mapping[tuple[str, str, int], int]
+) -> dict[str, tuple[NDArray, NDArray]]:
+    """Each camera's reference data set: (N, 3) points and (N, 2) pixels."""
+    references: dict[str, tuple[NDArray, NDArray]] = {}
+    for cam in dict.fromkeys(p["camera"] for p in points if p["dataset"] == "reference"):
+        pts, pix, _ = point_arrays(
+            [p for p in points if p["dataset"] == "reference" and p["camera"] == cam]
+        )
+        n = sizes.get(("reference", cam, 0), len(pts))
+        references[cam] = (pts[:n], pix[:n])
+    return references
+
+
 def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> dict[str, Any]:
     """The results of a run from its log's messages (``LogContents.messages``).
 
@@ -115,14 +183,8 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
     meta = (t.get(META) or [{}])[0]
     summary = (t.get(SUMMARY) or [None])[-1]
     points = t.get(POINT, [])
-    references: dict[str, tuple[NDArray, NDArray]] = {}
     sizes = {(d["dataset"], d["camera"], d["visit"]): d["points"] for d in t.get(DATASET, [])}
-    for cam in dict.fromkeys(p["camera"] for p in points if p["dataset"] == "reference"):
-        pts, pix, _ = point_arrays(
-            [p for p in points if p["dataset"] == "reference" and p["camera"] == cam]
-        )
-        n = sizes.get(("reference", cam, 0), len(pts))
-        references[cam] = (pts[:n], pix[:n])
+    references = reference_sets(points, sizes)
     truths = {d["name"]: camera_from_dict(d["camera"], "truth") for d in t.get(TRUTH_CAMERA, [])}
 
     calibrations = []
@@ -131,31 +193,10 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
     for rec in t.get(CALIBRATION, []):
         cam_name, visit = rec["camera"], rec["visit"]
         camera = camera_from_dict(rec["camera_model"], f"calibration of {cam_name}")
-        mine = [
-            p
-            for p in points
-            if p["dataset"] == "visit" and p["camera"] == cam_name and p["visit"] == visit
-        ]
-        pts, pix, xy = point_arrays(mine)
-        pts, pix = pts[: rec["points"]], pix[: rec["points"]]
-        ref = references.get(cam_name)
-        entry: dict[str, Any] = {
-            "camera": cam_name,
-            "visit": visit,
-            "station": _array(rec["station"]).tolist(),
-            "distance_travelled_m": rec["distance_travelled"],
-            "points": rec["points"],
-            "sigma_px": rec["sigma_px"],
-            "parameters": _parameters(camera, pixel_size_mm),
-            "std": rec["std"],
-            "errors": {
-                "world": _errors(camera, *ref) if ref is not None else None,
-                "local": _errors(camera, pts, pix),
-            },
-            "truth": _truth(camera, truths[cam_name]) if cam_name in truths else None,
-            "residuals_px": (pix - camera.project(pts)).tolist() if len(pts) else [],
-            "data_points_xy": xy.tolist(),
-        }
+        pts, pix, xy = visit_points(points, cam_name, visit, rec["points"])
+        entry = calibration_entry(
+            rec, camera, rec["std"], (pts, pix, xy), references, truths, pixel_size_mm
+        )
         calibrations.append(entry)
         first_position.setdefault(cam_name, camera.position)
         last_position[cam_name] = camera.position

@@ -66,7 +66,12 @@ class PaperStrategy(Strategy):
         self.marker = sc.marker.assembly()
         # Where the group is along the route, m of arc length.
         self._arc = self.path.project(sc.robots.parent.start_xy)
-        self._visits = iter(_paper_visits(view))
+        goals: list[Visit | Return] = list(_paper_visits(view))
+        if sc.route.return_to_start:
+            start = np.asarray(sc.robots.parent.start_xy, dtype=float)
+            yaw = math.radians(sc.robots.parent.start_yaw_deg)
+            goals.append(Return(start, yaw, "back to the start to close the loop"))
+        self._visits = iter(goals)
         self._goal: Visit | Return | None = None  # where the current travel goes
         self._leg_ends: list[float] | None = None  # the travel's remaining leg ends
         self._reached_s: float | None = None  # the last leg's end, to place the group by
@@ -109,7 +114,12 @@ class PaperStrategy(Strategy):
             s_now = path.project(parent_xy, near=self._arc)
             if np.linalg.norm(goal.station - parent_xy) < ARRIVED:
                 return None
-            s_goal = path.project(goal.station)
+            # A return to the start goes to the route's end (which is also its beginning).
+            end = np.asarray(view.scenario.route.waypoints[-1], dtype=float)
+            if isinstance(goal, Return) and np.linalg.norm(goal.station - end) < ROUTE_END:
+                s_goal = path.length
+            else:
+                s_goal = path.project(goal.station)
             self._direction = 1.0 if s_goal >= s_now else -1.0
             self._leg_ends = leg_goals(path, s_now, s_goal, self._step(view))
         else:
@@ -273,6 +283,10 @@ class PaperStrategy(Strategy):
         return StopPlan(
             child, [v.stop for v in planned], [v.stop for v in spares], self._heading(view, eye)
         )
+
+
+ROUTE_END = 0.5
+"""A return to a place this close to the route's end (m) goes to the end of the route."""
 
 
 def _paper_visits(view: CampaignView) -> list[Visit]:

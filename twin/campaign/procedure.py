@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from calib.detection.sequence import SwitchingSequence
 from twin.campaign.collection import DataCollection
+from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import CampaignOutcome, Journal, Progress
 from twin.campaign.records import CalibrationRecord
 from twin.campaign.strategies import strategy_named
@@ -163,6 +164,10 @@ class Campaign:
             if self.settings.led_sequence == "binary"
             else SwitchingSequence.one_at_a_time(len(marker.leds_body))
         )
+        if scenario.control_points:
+            self.travel.control_points = ControlPoints(
+                rig.total_station, self.journal, scenario.control_points, self.settings.lock_retries
+            )
         self.collection = DataCollection(rig, self.travel, self.journal, self.settings, sequence)
         self.view: CampaignView = _RigView(scenario, rig, self.cps, self.journal)
         self.references: dict[str, tuple[NDArray, NDArray]] = {}
@@ -218,6 +223,8 @@ class Campaign:
             self.journal.stage("done")
             return self.outcome
         self.journal.parent_fix(self.cps.parent)
+        if self.travel.control_points is not None:
+            self.travel.control_points.sight(self.cps.parent, self.rig.parent.name)
         self.journal.stage("reference")
         cameras = yield ReferenceCameras()
         for camera in cameras:
@@ -234,6 +241,8 @@ class Campaign:
                 break
             if not (yield from self._go_to(goal)):
                 break
+        if self.travel.control_points is not None:
+            self.travel.control_points.report_unseen(self.rig.parent.name)
         self.journal.stage("done")
         self.outcome.travelled = self.journal.travelled
         return self.outcome

@@ -18,6 +18,7 @@ EVENT = "/campaign/event"
 SKIPPED = "/campaign/skipped_visit"
 DATASET = "/campaign/dataset"
 CHILD_PLACED = "/campaign/child_placed"
+CONTROL_SIGHTING = "/campaign/control_sighting"
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,9 @@ class ParentFix:
             (yaw, x, y, z). distance_travelled: the parent's travel so far, m.
         children: the children the fix was solved from, in the order measured (none at
             the first station).
+        children_level: (N, 3) those children's reference points as measured from this
+            station, in its levelled frame, m (what a global adjustment needs).
+        children_covariance: (N, 3, 3) their covariances, m^2.
     """
 
     timestamp: float
@@ -56,6 +60,8 @@ class ParentFix:
     covariance: NDArray[np.float64]
     distance_travelled: float
     children: tuple[str, ...] = ()
+    children_level: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    children_covariance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
 
 @dataclass(frozen=True)
@@ -191,3 +197,22 @@ class DataSet:
     camera: str
     visit: int
     points: int
+
+
+@dataclass(frozen=True)
+class ControlSighting:
+    """A control point (a prism left in place, or a surveyed mark) measured from the
+    parent's current station.
+
+    Attributes:
+        timestamp: s. name: the control point's name.
+        point_level: (3,) the point in the parent's levelled frame, m.
+        covariance: (3, 3) of ``point_level``, m^2.
+        world: (3,) the point in W from the parent's estimate, m.
+    """
+
+    timestamp: float
+    name: str
+    point_level: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    world: NDArray[np.float64]

@@ -92,7 +92,7 @@ MIN_ORIENTING_RANGE = 1.0
 centimetres of the parent's position error would turn its bearing too much."""
 
 
-def _shoot(
+def shoot_at(
     station: TotalStation,
     aim: NDArray[np.float64],
     retries: int,
@@ -275,7 +275,7 @@ def shoot_cubes(
 
     failed: list[str] = []
     for k in range(len(predicted)):
-        add(_shoot(station, predicted[k], retries, report, k, failed))
+        add(shoot_at(station, predicted[k], retries, report, k, failed))
     if cubes_body is None:
         return shots if len(shots) == len(predicted) else None
     if not shots and not failed:
@@ -283,7 +283,7 @@ def shoot_cubes(
         centre = predicted.mean(axis=0)
         for degrees in SEARCH_DEG:
             report.event("prism_search", f"searching {degrees:+.0f} deg from the prediction", {})
-            add(_shoot(station, _swept(centre, degrees), 0, report, 0))
+            add(shoot_at(station, _swept(centre, degrees), 0, report, 0))
             if shots:
                 break
     for _ in range(3):
@@ -299,7 +299,7 @@ def shoot_cubes(
             tries.sort(key=lambda t: float(np.linalg.norm(t[1] - predicted[t[0]])))
             for missing, aim in tries:
                 report.event("prism_reaimed", f"aiming at cube {missing} from the other two", {})
-                add(_shoot(station, aim, 0, report, missing))
+                add(shoot_at(station, aim, 0, report, missing))
                 if len(shots) == 3:
                     break
         else:
@@ -312,7 +312,7 @@ def shoot_cubes(
                 report.event("prism_reaimed", f"aiming at the others as if cube {k} was locked", {})
                 for j in range(len(predicted)):
                     if j != k and len(shots) < 2:
-                        add(_shoot(station, turned[j], 0, report, j))
+                        add(shoot_at(station, turned[j], 0, report, j))
                 if len(shots) >= 2:
                     break
     if len(shots) != 3:

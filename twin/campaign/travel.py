@@ -17,6 +17,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import Journal, RobotJournal
 from twin.campaign.plan.clearance import ROBOT_CLEARANCE, path_clear, robot_fits
 from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
@@ -76,6 +77,8 @@ class Travel:
         self.children = list(rig.children)
         # The measurement that placed each child in the CPS state.
         self.placed: dict[str, ChildObservation] = {}
+        # Measured after each fix, when the scenario has any (set by the campaign).
+        self.control_points: ControlPoints | None = None
 
     # -- a leg ---------------------------------------------------------------------------------
     def execute(self, leg: Leg) -> bool:
@@ -254,7 +257,9 @@ class Travel:
                 continue
             pose = self.cps.parent
             parent.set_pose(float(pose.translation[0]), float(pose.translation[1]), pose.yaw)
-            self.journal.parent_fix(pose, tuple(o.child for o in obs))
+            self.journal.parent_fix(pose, obs)
+            if self.control_points is not None:
+                self.control_points.sight(pose, parent.name)
             return
         raise CampaignAborted(
             "the parent could not fix its pose from the children (if they may move while "

@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Read a run's log.mcap (whole, or cut short by a kill) and write results.json, "
             "cameras/, figures/ and report.md again, as the run did. With --model opencv "
-            "each visit is calibrated again, from the same points, in OpenCV's model. Exit "
+            "each visit is calibrated again, from the same points, in OpenCV's model. The "
+            "whole campaign is adjusted at once as twin run does (--adjust). Exit "
             "code 0; 1 when the log holds no calibration; 2 for bad input."
         ),
     )
@@ -36,6 +37,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--scenario",
         type=Path,
         help="scenario for the figures (default: the file the log names)",
+    )
+    p.add_argument(
+        "--adjust",
+        choices=("shared", "per_visit", "none"),
+        help="adjust the whole campaign at once: a camera visited twice is one camera "
+        "(shared: the default with --model tsai, as twin run does), or one per visit tied "
+        "through control points (per_visit); none: the sequential results only (the "
+        "default with --model opencv)",
     )
     p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
     arguments.add_overwrite(p)
@@ -61,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
             scenario=args.scenario,
             report=not args.no_report,
             overwrite=args.overwrite,
+            adjust={None: "auto", "none": None}.get(args.adjust, args.adjust),
         )
     except (ValueError, ScenarioError) as exc:
         console.print(f"[red]error:[/red] {exc}", highlight=False)

@@ -203,6 +203,7 @@ def print_results(results: dict, console: Console) -> None:
             "-" if truth is None else f"{truth['position_error_mm']:.1f}",
         )
     console.print(table)
+    print_adjustment(results, console)
     for s in results["skipped_visits"]:
         console.print(f"skipped {s['camera']} visit {s['visit']}: {s['reason']} ({s['message']})")
     if results["failures"]:
@@ -216,3 +217,29 @@ def print_results(results: dict, console: Console) -> None:
             f"{results['parent_final_error_mm']:.1f} mm"
             + ("" if wall is None else f"; wall time {wall:.1f} s")
         )
+
+
+def print_adjustment(results: dict, console: Console) -> None:
+    """The adjusted calibrations beside the sequential ones, or why there are none."""
+    info = results.get("adjustment")
+    if not info:
+        return
+    if info["status"] != "adjusted":
+        console.print(f"global adjustment: {info['message']}")
+        return
+    table = Table(
+        title=f"global adjustment ({info['cameras']} cameras; chi2/dof "
+        f"{info['variance_factor']:.2f}; measured twice: {'; '.join(info['redundancy'])})"
+    )
+    for col in ("camera", "visit", "world 3D [mm]", "adjusted", "position err [mm]", "adjusted"):
+        table.add_column(col, justify="right")
+    for c, a in zip(results["calibrations"], results["adjusted_calibrations"], strict=False):
+        cells = []
+        for entry in (c, a):
+            w = entry["errors"]["world"]
+            cells.append("-" if w is None else f"{w['error_3d_mean_mm']:.2f}")
+        for entry in (c, a):
+            truth = entry["truth"]
+            cells.append("-" if truth is None else f"{truth['position_error_mm']:.1f}")
+        table.add_row(c["camera"], str(c["visit"]), cells[0], cells[1], cells[2], cells[3])
+    console.print(table)

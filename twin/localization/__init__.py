@@ -12,6 +12,10 @@
   marker fit rejects a wrong prism with ``InconsistentMarkerError``).
 - :mod:`.sequence`: ``CpsSequence``, the joint estimate and the record of every step.
 - :mod:`.leapfrog`: a pure-numpy straight leapfrog simulator and Monte Carlo.
+- :mod:`.network`: a whole campaign's measurements as one network (stations, stands,
+  control points, LED stops, cameras).
+- :mod:`.adjustment`: the global adjustment of a network (sparse least squares) with its
+  covariance.
 
 The same over arrays of T Monte Carlo trials (each trial equals the scalar code on its
 data; what the scalar code raises for one trial is a per-trial flag):

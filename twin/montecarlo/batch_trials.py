@@ -17,12 +17,14 @@ from typing import Any
 import numpy as np
 
 from twin.batch.execute import BatchOutcome, BatchRun
+from twin.batch.network import AdjustedVisits, adjust_trials
 from twin.batch.plan import BatchPlan
 from twin.montecarlo.sources import isolate
 from twin.montecarlo.trial import (
     TrialFailed,
     TrialResult,
     TrialSpec,
+    adjusted_columns,
     mm,
     offset_columns,
     parent_columns,
@@ -46,6 +48,8 @@ BATCH_OMITS = (
     "the tilt of a child on a tilted floor patch (its marker moves in the plane)",
     "the occlusion of an LED by an obstacle or a person (the plan's stops were chosen in "
     "the clear)",
+    "control points ([[control_points]]): not measured; with --adjust each trial's "
+    "adjustment ties a camera's visits together but no loop through a control point",
 )
 """What the batch fidelity leaves out; the geometric fidelity keeps it (``montecarlo.json``
 and the README say so too)."""
@@ -57,10 +61,12 @@ class BatchChunk:
 
     Attributes:
         plan: the campaign's plan. specs: the trials (one configuration).
+        adjust: also adjust each trial's whole network (:mod:`twin.batch.network`).
     """
 
     plan: BatchPlan
     specs: tuple[TrialSpec, ...]
+    adjust: bool = False
 
 
 def default_chunk_size(trials: int, workers: int) -> int:
@@ -69,14 +75,28 @@ def default_chunk_size(trials: int, workers: int) -> int:
     return max(1, min(DEFAULT_CHUNK_SIZE, math.ceil(trials / max(workers, 1))))
 
 
-def chunks(plan: BatchPlan, specs: Sequence[TrialSpec], size: int) -> Iterator[BatchChunk]:
+def chunks(
+    plan: BatchPlan, specs: Sequence[TrialSpec], size: int, adjust: bool = False
+) -> Iterator[BatchChunk]:
     """``specs`` in chunks of at most ``size`` trials of one configuration, in order."""
     by_config: dict[str, list[TrialSpec]] = {}
     for spec in specs:
         by_config.setdefault(spec.config, []).append(spec)
     for group in by_config.values():
         for start in range(0, len(group), size):
-            yield BatchChunk(plan, tuple(group[start : start + size]))
+            yield BatchChunk(plan, tuple(group[start : start + size]), adjust)
+
+
+def _adjusted_columns(v: AdjustedVisits | None, k: int) -> dict[str, float]:
+    """The adjusted columns of trial ``k`` of a visit (NaN without an adjustment)."""
+    if v is None or not math.isfinite(v.position_error[k]):
+        return adjusted_columns(None)
+    return {
+        "adjusted_position_error_mm": mm(v.position_error[k]),
+        "adjusted_rotation_error_deg": math.degrees(v.rotation_error[k]),
+        **{f"adjusted_position_d{a}_mm": mm(v.position_offset[k, i]) for i, a in enumerate("xyz")},
+        "adjusted_predicted_rms_mm": mm(v.predicted[k]),
+    }
 
 
 def check_batch_scenario(plan_scenario: Any) -> None:
@@ -101,9 +121,15 @@ def run_batch_chunk(chunk: BatchChunk) -> list[TrialResult]:
     try:
         simulated = isolate(chunk.plan.scenario, config)
         led_px = {c.name: simulated.projected_led_px(c.name) for c in simulated.cameras}
-        outcome = BatchRun(
-            chunk.plan, [s.seed for s in specs], noise=simulated.noise, led_px=led_px
-        ).run()
+        run = BatchRun(
+            chunk.plan,
+            [s.seed for s in specs],
+            noise=simulated.noise,
+            led_px=led_px,
+            record_network=chunk.adjust,
+        )
+        outcome = run.run()
+        adjusted = _adjusted(chunk, run) if chunk.adjust else {}
     except Exception as exc:
         first, last = specs[0].trial, specs[-1].trial
         raise TrialFailed(
@@ -111,10 +137,33 @@ def run_batch_chunk(chunk: BatchChunk) -> list[TrialResult]:
             f"{type(exc).__name__}: {exc}"
         ) from exc
     wall = (time.perf_counter() - t0) / len(specs)
-    return [TrialResult(spec, tuple(_rows(spec, outcome, k)), wall) for k, spec in enumerate(specs)]
+    return [
+        TrialResult(spec, tuple(_rows(spec, outcome, k, adjusted)), wall)
+        for k, spec in enumerate(specs)
+    ]
 
 
-def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]]:
+def _adjusted(chunk: BatchChunk, run: BatchRun) -> dict[tuple[str, int], AdjustedVisits]:
+    """Each trial's global adjustment, per visit (weighed by the advertised noise, as the
+    estimators weigh)."""
+    sc = chunk.plan.scenario
+    assert run.network is not None
+    return adjust_trials(
+        run.network,
+        run.trials,
+        chunk.plan.cameras,
+        run.advertised_led_px,
+        sc.campaign.child_creep_m,
+        [key for key, _ in planned_visits(sc)],
+    )
+
+
+def _rows(
+    spec: TrialSpec,
+    outcome: BatchOutcome,
+    k: int,
+    adjusted: dict[tuple[str, int], AdjustedVisits] | None = None,
+) -> list[dict[str, Any]]:
     """The table rows of trial ``k`` of a batch (one per planned visit)."""
     std = np.sqrt(np.diag(outcome.parent_covariance[k]))
     trial_level = parent_columns(
@@ -141,6 +190,7 @@ def _rows(spec: TrialSpec, outcome: BatchOutcome, k: int) -> list[dict[str, Any]
                 "predicted_calibration_rms_mm": (
                     mm(v.predicted_calibration[k]) if made else math.nan
                 ),
+                **_adjusted_columns((adjusted or {}).get((camera, visit)), k),
                 **trial_level,
             }
         )

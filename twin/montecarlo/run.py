@@ -115,6 +115,7 @@ def run_montecarlo(
     strategy: str | None = None,
     overwrite: bool = False,
     chunk_size: int | None = None,
+    adjust: bool = False,
 ) -> list[dict[str, Any]]:
     """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
 
@@ -138,6 +139,10 @@ def run_montecarlo(
         chunk_size: trials one array holds at the batch fidelity (default: the trials
             shared evenly among the workers, at most
             :data:`twin.montecarlo.batch_trials.DEFAULT_CHUNK_SIZE`).
+        adjust: at the batch fidelity, also adjust each trial's whole network (the
+            ``adjusted_*`` columns; about 0.3 s a trial on the paper's hall, tens of times
+            the batch's own cost). The geometric and render fidelities always adjust (as
+            ``twin run`` does).
 
     Raises:
         ValueError: for bad counts, an unknown strategy, or settings that differ from the
@@ -163,6 +168,7 @@ def run_montecarlo(
         check_batch_scenario(scenario)
         plan = record_plan(scenario, strategy_name)
         settings["batch_omits"] = list(BATCH_OMITS)
+        settings["adjust"] = bool(adjust)
     runner = make_engine(engine, workers, ray_address)
     try:
         folder = claim_folder(
@@ -186,7 +192,7 @@ def run_montecarlo(
             t0 = time.perf_counter()
             if plan is not None:
                 size = chunk_size or default_chunk_size(len(todo), workers)
-                units: list[Any] = list(chunks(plan, todo, size))
+                units: list[Any] = list(chunks(plan, todo, size, adjust))
                 fn: Callable[[Any], Any] = run_batch_chunk
             else:
                 units, fn = todo, trial_fn

@@ -90,24 +90,45 @@ def visit_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> list[dic
         predicted = math.hypot(transfer, own)
         mc = distribution([r["position_error_mm"] for r in made])
         ratio = mc["rms"] / predicted if predicted > 0 else math.nan
-        out.append(
-            {
-                "camera": visit[0],
-                "visit": visit[1],
-                "trials": len(mine),
-                "calibrated_fraction": len(made) / len(mine) if mine else math.nan,
-                "distance_travelled_m": distribution([r["distance_travelled_m"] for r in made]),
-                **{m: distribution([r[m] for r in made]) for m in METRICS},
-                "predicted": {
-                    "transfer_rms_mm": transfer,
-                    "calibration_rms_mm": own,
-                    "rms_mm": predicted,
-                    "mc_over_predicted": ratio,
-                    "agrees": bool(AGREEMENT[0] <= ratio <= AGREEMENT[1]),
-                },
-            }
-        )
+        entry: dict[str, Any] = {
+            "camera": visit[0],
+            "visit": visit[1],
+            "trials": len(mine),
+            "calibrated_fraction": len(made) / len(mine) if mine else math.nan,
+            "distance_travelled_m": distribution([r["distance_travelled_m"] for r in made]),
+            **{m: distribution([r[m] for r in made]) for m in METRICS},
+            "predicted": {
+                "transfer_rms_mm": transfer,
+                "calibration_rms_mm": own,
+                "rms_mm": predicted,
+                "mc_over_predicted": ratio,
+                "agrees": bool(AGREEMENT[0] <= ratio <= AGREEMENT[1]),
+            },
+        }
+        adjusted = adjusted_summary(made)
+        if adjusted is not None:
+            entry["adjusted"] = adjusted
+        out.append(entry)
     return out
+
+
+def adjusted_summary(made: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    """The global adjustment's errors of a visit's calibrated rows: the distribution of its
+    position error, its Monte-Carlo RMS against the RMS of its predicted errors, and its
+    centre's spread (the offset from the truth, mm) per axis; None without adjusted rows."""
+    err = [r.get("adjusted_position_error_mm", math.nan) for r in made]
+    if not len(_finite(err)):
+        return None
+    predicted = _rms(_finite([r["adjusted_predicted_rms_mm"] for r in made]))
+    mc = distribution(err)
+    ratio = mc["rms"] / predicted if predicted > 0 else math.nan
+    return {
+        "position_error_mm": mc,
+        "rotation_error_deg": distribution([r["adjusted_rotation_error_deg"] for r in made]),
+        "predicted_rms_mm": predicted,
+        "mc_over_predicted": ratio,
+        "agrees": bool(AGREEMENT[0] <= ratio <= AGREEMENT[1]),
+    }
 
 
 def parent_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> dict[str, Any]:

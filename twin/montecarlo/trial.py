@@ -40,6 +40,12 @@ COLUMNS: dict[str, type] = {
     "local_error_3d_mean_mm": float,
     "predicted_transfer_rms_mm": float,
     "predicted_calibration_rms_mm": float,
+    "adjusted_position_error_mm": float,
+    "adjusted_rotation_error_deg": float,
+    "adjusted_position_dx_mm": float,
+    "adjusted_position_dy_mm": float,
+    "adjusted_position_dz_mm": float,
+    "adjusted_predicted_rms_mm": float,
     "parent_final_dx_mm": float,
     "parent_final_dy_mm": float,
     "parent_final_dz_mm": float,
@@ -155,6 +161,23 @@ def _offset_mm(calibration: dict[str, Any] | None) -> Any:
     return estimated - np.asarray(calibration["truth"]["position_mm"], dtype=float)
 
 
+def adjusted_columns(entry: dict[str, Any] | None) -> dict[str, float]:
+    """The columns of a visit's calibration in the global adjustment (a result's
+    ``adjusted_calibrations`` entry; NaN where there is none): its true position and
+    rotation errors, its centre minus the true one (mm) and the adjustment's predicted RMS
+    position error (mm, from its covariance)."""
+    truth = entry.get("truth") if entry else None
+    std = entry.get("std", {}) if entry else {}
+    sigma = [float(std.get(k, math.nan)) for k in ("x", "y", "z")]
+    offset = _offset_mm(entry)
+    return {
+        "adjusted_position_error_mm": _get(truth, "position_error_mm"),
+        "adjusted_rotation_error_deg": _get(truth, "rotation_error_deg"),
+        **{f"adjusted_position_d{axis}_mm": float(offset[i]) for i, axis in enumerate("xyz")},
+        "adjusted_predicted_rms_mm": mm(math.sqrt(sum(v * v for v in sigma))),
+    }
+
+
 def parent_columns(
     error_m: Any, std_m: Any, distance_m: float, failures: int
 ) -> dict[str, float | int]:
@@ -177,6 +200,7 @@ def trial_rows(
 ) -> list[dict[str, Any]]:
     """The table rows of a trial from its results and predictions (one per planned visit)."""
     made = {(c["camera"], c["visit"]): c for c in results["calibrations"]}
+    adjusted = {(c["camera"], c["visit"]): c for c in results.get("adjusted_calibrations", [])}
     predicted = {(p.camera, p.visit): p for p in predictions}
     err = final.error_m if final is not None else np.full(3, np.nan)
     std = np.sqrt(np.diag(final.covariance_m2)) if final is not None else np.full(3, np.nan)
@@ -204,6 +228,7 @@ def trial_rows(
                 "local_error_3d_mean_mm": _get(local, "error_3d_mean_mm"),
                 "predicted_transfer_rms_mm": mm(p.transfer_rms_m) if p else math.nan,
                 "predicted_calibration_rms_mm": mm(p.calibration_rms_m) if p else math.nan,
+                **adjusted_columns(adjusted.get((camera, visit))),
                 **trial_level,
             }
         )

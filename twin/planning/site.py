@@ -231,6 +231,7 @@ def plan_site(
         cameras=[cams_w[n] for n in names],
         children=children,
         route=route,
+        return_to_start=return_to_start,
         visits=[
             (cam, stations[cam].xy, heading)
             for cam, heading in zip(sequence, arrivals, strict=True)
@@ -471,6 +472,7 @@ def _scenario(
     cameras: list[dict[str, Any]],
     children: list[NDArray],
     route: NDArray,
+    return_to_start: bool,
     visits: list[tuple[str, NDArray, float]],
     site: dict[str, Any],
 ) -> dict[str, Any]:
@@ -487,7 +489,7 @@ def _scenario(
                 for k, c in enumerate(children)
             ],
         },
-        "route": {"waypoints": route.tolist()},
+        "route": {"waypoints": route.tolist(), "return_to_start": return_to_start},
         "calibration": {
             "visits": [
                 {"camera": cam, "station": xy.tolist(), "yaw_deg": heading}

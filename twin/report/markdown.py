@@ -449,6 +449,65 @@ def _truth(results: Results) -> list[str]:
     return [*lines, ""]
 
 
+def _adjustment(results: Results) -> list[str]:
+    info = mapping(results.get("adjustment"))
+    if not info:
+        return []
+    lines = ["## Global adjustment: every measurement at once", ""]
+    if info.get("status") != "adjusted":
+        return [*lines, str(info.get("message", "")), ""]
+    lines += [
+        "CPS fixes each station from the last; the adjustment solves every station, every "
+        "child stand, every camera and every control point from all the total station's "
+        "shots and all the LED pixels together, with their stated noise as weights. What "
+        "it could use beyond the chain of CPS steps: "
+        + "; ".join(str(r) for r in info.get("redundancy", []))
+        + f". Cameras: {info.get('cameras')}. Chi-square per degree of freedom "
+        f"{fmt(info.get('variance_factor'))} (about 1 when the stated noise is right).",
+        "",
+    ]
+    rows = []
+    adjusted = {
+        visit_key(e): e
+        for e in calibrations({"calibrations": results.get("adjusted_calibrations", [])})
+    }
+    for e in calibrations(results):
+        key = visit_key(e)
+        a = adjusted.get(key, {})
+        world = mapping(mapping(e.get("errors")).get("world"))
+        world_a = mapping(mapping(a.get("errors")).get("world"))
+        truth, truth_a = mapping(e.get("truth")), mapping(a.get("truth"))
+        std = mapping(a.get("std"))
+        sigma = [number(std.get(k)) for k in ("x", "y", "z")]
+        rms = (
+            1e3 * math.sqrt(sum(v * v for v in sigma))
+            if all(v is not None for v in sigma)
+            else None
+        )
+        rows.append(
+            (
+                visit_name(key),
+                fmt(world.get("error_3d_mean_mm")),
+                fmt(world_a.get("error_3d_mean_mm")),
+                fmt(truth.get("position_error_mm"), ".1f"),
+                fmt(truth_a.get("position_error_mm"), ".1f"),
+                fmt(rms, ".1f"),
+            )
+        )
+    lines += table(
+        (
+            "visit",
+            "world 3D [mm]",
+            "adjusted",
+            "position error [mm]",
+            "adjusted",
+            "adjusted predicted [mm]",
+        ),
+        rows,
+    )
+    return [*lines, ""]
+
+
 def _timings(results: Results) -> list[str]:
     timings = {str(k): number(v) for k, v in mapping(results.get("timings_s")).items()}
     timings = {k: v for k, v in timings.items() if v is not None}
@@ -488,6 +547,7 @@ def render_markdown(
     lines += _table_iii(scenario, results)
     lines += _repeatability(results)
     lines += _truth(results)
+    lines += _adjustment(results)
     lines += _timings(results)
     lines += _figures(figure_paths, out_dir)
     text = "\n".join(lines).rstrip() + "\n"

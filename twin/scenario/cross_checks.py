@@ -69,6 +69,38 @@ def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
     issues += _check_people(sc)
     issues += _check_campaign(sc)
     issues += _check_moved_cameras(sc)
+    issues += _check_control_points(sc)
+    return issues
+
+
+def _check_control_points(sc: Scenario) -> list[ScenarioIssue]:
+    """``control_points``: unique names, inside the space."""
+    issues = []
+    seen: set[str] = set()
+    (x0, x1), (y0, y1) = sc.space.x_range, sc.space.y_range
+    z0, z1 = sc.space.z_range
+    for i, point in enumerate(sc.control_points):
+        key = f"control_points[{i}]"
+        if point.name in seen:
+            issues.append(
+                ScenarioIssue(
+                    f"{key}.name",
+                    f"control point names must be unique, repeated: {point.name}",
+                    point.name,
+                    "a name not used by another control point",
+                )
+            )
+        seen.add(point.name)
+        x, y, z = point.position
+        if not (x0 <= x <= x1 and y0 <= y <= y1 and z0 < z < z1):
+            issues.append(
+                ScenarioIssue(
+                    f"{key}.position",
+                    f"control point {point.name!r} lies outside the space",
+                    list(point.position),
+                    f"x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}], z in ({z0:g}, {z1:g}) m",
+                )
+            )
     return issues
 
 
@@ -408,6 +440,18 @@ def _check_route(sc: Scenario) -> list[ScenarioIssue]:
                 f"start {list(sc.robots.parent.start_xy)}",
                 list(sc.route.waypoints[0]),
                 f"a route that starts where the parent does (within {ROUTE_START} m)",
+            )
+        )
+    last = np.asarray(sc.route.waypoints[-1], dtype=float)
+    if sc.route.return_to_start and np.linalg.norm(last - start) > ROUTE_START:
+        n = len(sc.route.waypoints) - 1
+        issues.append(
+            ScenarioIssue(
+                f"route.waypoints[{n}]",
+                f"route.return_to_start is set but the route ends "
+                f"{np.linalg.norm(last - start):.2f} m from the parent's start",
+                list(sc.route.waypoints[-1]),
+                f"a route that ends where the parent started (within {ROUTE_START} m)",
             )
         )
     pts, seg = polyline_points(sc.route.waypoints, spacing=0.05)

@@ -659,9 +659,13 @@ class Route(Frozen):
     Attributes:
         waypoints: (x, y) points, m, at least two and at most ``MAX_WAYPOINTS``; the route
             is at most ``LONGEST_PATH`` (10 km) long.
+        return_to_start: after the last visit the group drives on to the route's end, the
+            parent's start, to close the loop (control points near the start are measured
+            again there). The route must end within 0.5 m of the parent's start.
     """
 
     waypoints: Waypoints
+    return_to_start: bool = False
 
     _not_too_long = field_validator("waypoints")(_path_not_too_long)
 
@@ -897,6 +901,27 @@ class SiteInfo(Frozen):
     resolution: Annotated[float, Field(gt=0.0, le=10.0)] = 0.1
 
 
+class ControlPoint(Frozen):
+    """A point the parent measures whenever it stands near it: a prism left on a pole
+    (at the start, say) or a surveyed mark. Measured again after a loop, it closes the loop
+    in the global adjustment (:mod:`twin.localization.adjustment`).
+
+    Attributes:
+        name: identifier.
+        position: (x, y, z) of the prism's centre in W, m (where the twin puts it; the
+            campaign aims there until it has measured the point).
+        surveyed: the position is known (surveyed into W): the adjustment holds it fixed.
+            Otherwise only the campaign's own measurements place it.
+        sight_radius_m: the parent measures the point from every station within this
+            horizontal distance of it, m.
+    """
+
+    name: Name
+    position: Point3
+    surveyed: bool = False
+    sight_radius_m: Annotated[float, Field(gt=0.0, le=100.0)] = 8.0
+
+
 class Scenario(Frozen):
     """A complete scenario. See ``scenarios/paper_hall.toml`` for a documented example.
 
@@ -910,6 +935,8 @@ class Scenario(Frozen):
         people: people walking through the space (distractors), none by default, at most
             ``MAX_PEOPLE``.
         campaign: how the calibration campaign runs.
+        control_points: points the parent measures when it passes (none by default; at
+            most ``MAX_CAMERAS``): see :class:`ControlPoint`.
         faults: faults injected into the simulated devices (none by default).
         site: where a scenario planned from a map came from, and the map-to-W transform
             (None for a scenario written by hand).
@@ -929,6 +956,7 @@ class Scenario(Frozen):
     sim: SimConfig = SimConfig()
     people: tuple[Person, ...] = Field(default=(), max_length=MAX_PEOPLE)
     campaign: CampaignSettings = CampaignSettings()
+    control_points: tuple[ControlPoint, ...] = Field(default=(), max_length=MAX_CAMERAS)
     faults: Faults = Faults()
     site: SiteInfo | None = None
     source: str = ""

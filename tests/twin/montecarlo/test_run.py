@@ -26,6 +26,16 @@ SMOKE = ROOT / "scenarios" / "smoke.toml"
 TRIALS = 4
 
 
+def same_rows(a: list[dict], b: list[dict]) -> bool:
+    """Row for row the same values, NaN (a visit or an adjustment without a value) equal
+    to NaN."""
+
+    def key(row: dict) -> dict:
+        return {k: "nan" if isinstance(v, float) and v != v else v for k, v in row.items()}
+
+    return [key(r) for r in a] == [key(r) for r in b]
+
+
 @pytest.fixture(scope="module")
 def smoke():
     return load_scenario(SMOKE)
@@ -94,7 +104,7 @@ def test_the_figures_draw_the_trials(reference, tmp_path, saved):
 def test_the_table_is_the_same_with_two_worker_processes(smoke, reference, tmp_path):
     ref_out, ref_rows = reference
     rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2)
-    assert rows == ref_rows
+    assert same_rows(rows, ref_rows)
     assert (tmp_path / TABLE).read_bytes() == (ref_out / TABLE).read_bytes()
 
 
@@ -106,7 +116,7 @@ def test_a_local_ray_instance_gives_the_same_rows(smoke, reference, tmp_path):
         rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2, engine="ray")
     finally:
         ray.shutdown()
-    assert rows == ref_rows
+    assert same_rows(rows, ref_rows)
 
 
 def test_the_table_is_the_same_whatever_the_chunk_size(smoke, reference, tmp_path):
@@ -114,7 +124,7 @@ def test_the_table_is_the_same_whatever_the_chunk_size(smoke, reference, tmp_pat
     _, ref_rows = reference
     for size in (1, 3):
         rows = run_montecarlo(smoke, tmp_path / str(size), TRIALS, master_seed=11, chunk_size=size)
-        assert rows == ref_rows
+        assert same_rows(rows, ref_rows)
 
 
 def test_a_batch_run_cut_short_resumes_to_the_same_table(smoke, reference, tmp_path):

@@ -156,6 +156,7 @@ def test_a_given_order_and_start_are_kept_and_the_route_returns(tmp_path):
     sc = load_scenario(out)
     assert [v.camera for v in sc.calibration.visits] == ["cam1", "cam2", "cam1"]
     assert sc.route.waypoints[-1] == pytest.approx((0.0, 0.0), abs=1e-9)
+    assert sc.route.return_to_start  # the campaign drives back, not only the route
     assert sc.site.map_pose == pytest.approx((0.0, 6.0, 90.0))
 
 

@@ -120,7 +120,7 @@ def build_sim_rig(
         advertised=None
         if advertised is None
         else (advertised.total_station.spec(), advertised.inclinometer.spec()),
-        shot_noise=ShotNoise(root, len(sc.robots.children)),
+        shot_noise=ShotNoise(root, len(sc.robots.children) + len(sc.control_points)),
     )
     bases: dict[str, MobileBase] = {}
     for name in names:

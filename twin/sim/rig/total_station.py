@@ -66,6 +66,10 @@ class SimTotalStation(TotalStation):
         self.fault_rng = fault_rng if fault_rng is not None else np.random.default_rng(0)
         self._aim: np.ndarray | None = None
         self.children = [c.name for c in world.scenario.robots.children]
+        # Control points' prisms stand still; they answer the aim like the children's.
+        self.controls = np.array(
+            [p.position for p in world.scenario.control_points], dtype=float
+        ).reshape(-1, 3)
         self._tilt: tuple[bytes, tuple[float, float]] = (b"", (0.0, 0.0))
         self._advertised = advertised or (spec, inclinometer)
         self.shot_noise = shot_noise
@@ -96,7 +100,9 @@ class SimTotalStation(TotalStation):
         if self._aim is None:
             raise RuntimeError("point the instrument at a prism before measuring")
         position, rotation, tilt = self._true_state()
-        prisms_world = np.vstack([self.world.marker_points(c)[0] for c in self.children])
+        prisms_world = np.vstack(
+            [self.world.marker_points(c)[0] for c in self.children] + [self.controls]
+        )
         prisms = (prisms_world - position) @ rotation  # instrument frame
         now = self.clock.now()
         if self.lost_lock_rate > 0 and self.fault_rng.random() < self.lost_lock_rate:
@@ -120,12 +126,28 @@ class SimTotalStation(TotalStation):
             timestamp=now,
             measurement_rng=None if self.shot_noise is None else self._keyed_noise,
         )
-        self.last_prism = (self.children[shot.prism_index // N_CUBES], shot.prism_index % N_CUBES)
+        self.last_prism = self._prism_name(shot.prism_index)
         return shot.measurement
+
+    def _prism_name(self, index: int) -> tuple[str, int]:
+        """(child, cube) of prism ``index``, or ("control_points", i) for a control point."""
+        children = len(self.children) * N_CUBES
+        if index >= children:
+            return ("control_points", index - children)
+        return (self.children[index // N_CUBES], index % N_CUBES)
 
     def _keyed_noise(self, index: int) -> np.random.Generator:
         """The measurement noise's generator for a shot that locked prism ``index``."""
         assert self.shot_noise is not None
+        children = len(self.children) * N_CUBES
+        if index >= children:  # a control point: keyed like a child that never moves
+            i = index - children
+            return self.shot_noise.generator(
+                self.world.robot_pose(self.parent)[:2],
+                len(self.children) + i,
+                self.controls[i, :2],
+                0,
+            )
         child = index // N_CUBES
         return self.shot_noise.generator(
             self.world.robot_pose(self.parent)[:2],

@@ -1,0 +1,120 @@
+"""A run's global adjustment, end to end: a small loop in the smoke room (camera 1
+calibrated twice, the route closed back to the start, a prism left near the start), run at
+the geometric fidelity with noise, adjusted by ``twin run`` and again by ``twin replay``."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from tests.twin.campaign.loop_scenario import loop_scenario
+from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
+from twin.campaign.network_log import LogNetworkError, network_from_log
+from twin.campaign.records import PARENT_FIX
+from twin.record import read_log
+from twin.replay import replay_log
+from twin.runner import run_scenario
+from twin.scenario import ScenarioError
+from twin.scenario.loader import scenario_from_dict
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("loop")
+    sc = loop_scenario()
+    results = run_scenario(sc, out, fidelity="geometric", seed=11, report=False)
+    return sc, results, out
+
+
+def test_a_run_writes_the_adjusted_calibrations_beside_the_sequential(run):
+    _, results, out = run
+    info = results["adjustment"]
+    assert info["status"] == "adjusted", info
+    assert info["redundancy"][0] == "camera cam1 from stations [1, 3]"
+    assert info["redundancy"][1].startswith("control point start_prism from stations [0, 1, ")
+    assert 0.7 < info["variance_factor"] < 1.4  # about 1: the stated noise is the simulated
+    seq, adj = results["calibrations"], results["adjusted_calibrations"]
+    assert [(c["camera"], c["visit"]) for c in adj] == [(c["camera"], c["visit"]) for c in seq]
+    for c in adj:
+        assert set(c) == set(seq[0])
+        std = np.array([c["std"][k] for k in "xyz"])
+        assert np.all(std > 0)
+        # Within 5 predicted standard deviations of the truth (a normal 3-vector's length
+        # exceeds 5 sigma in fewer than 1e-5 of the runs).
+        assert c["truth"]["position_error_mm"] < 5e3 * np.linalg.norm(std)
+    written = json.loads((out / "results.json").read_text())
+    assert written["adjusted_calibrations"][1]["truth"] == adj[1]["truth"]
+
+
+def test_a_control_point_the_route_never_passes_is_reported(run):
+    _, results, _ = run
+    assert results["failures"].get("control_point_never_seen") == 1
+    assert not any("far_mark" in r for r in results["adjustment"]["redundancy"])
+
+
+def test_replay_adjusts_the_log_again_the_same_way(run, tmp_path):
+    sc, results, out = run
+    again = replay_log(out / "log.mcap", tmp_path / "a", scenario=sc, report=False)
+    assert again["adjusted_calibrations"] == results["adjusted_calibrations"]
+    per_visit = replay_log(
+        out / "log.mcap", tmp_path / "b", scenario=sc, report=False, adjust="per_visit"
+    )
+    assert per_visit["adjustment"]["redundancy"] == results["adjustment"]["redundancy"][1:]
+    a, b = (c["parameters"]["position_mm"] for c in per_visit["adjusted_calibrations"])
+    assert a != b  # one camera per visit: two positions
+    none = replay_log(out / "log.mcap", tmp_path / "c", scenario=sc, report=False, adjust=None)
+    assert "adjusted_calibrations" not in none
+
+
+def test_replay_refuses_to_adjust_in_opencvs_model(run, tmp_path):
+    _, _, out = run
+    with pytest.raises(ValueError, match="adjustment works in Tsai's model"):
+        replay_log(out / "log.mcap", tmp_path / "x", model="opencv", report=False, adjust="shared")
+    refit = replay_log(out / "log.mcap", tmp_path / "z", model="opencv", report=False)
+    assert "adjusted_calibrations" not in refit  # OpenCV's model: not adjusted by default
+    with pytest.raises(ValueError, match="adjust must be one of"):
+        replay_log(out / "log.mcap", tmp_path / "y", report=False, adjust="both")
+
+
+def test_without_anything_measured_twice_the_adjustment_says_so(run):
+    sc, _, out = run
+    messages = [m for m in read_log(out / "log.mcap").messages if "control" not in m.topic]
+    result = adjusted_results(messages, cameras="per_visit", **adjustment_settings(sc))
+    assert result["adjustment"]["status"] == "nothing_to_add"
+    assert "nothing was measured twice" in result["adjustment"]["message"]
+    assert result["adjusted_calibrations"] == []
+
+
+def test_a_log_without_the_fixes_measurements_cannot_be_adjusted(run):
+    _, _, out = run
+    messages = []
+    for m in read_log(out / "log.mcap").messages:
+        if m.topic == PARENT_FIX:
+            data = {k: v for k, v in m.data.items() if not k.startswith("children_")}
+            m = dataclasses.replace(m, data=data)
+        messages.append(m)
+    with pytest.raises(LogNetworkError, match="do not record the children's measurements"):
+        network_from_log(messages)
+    assert adjusted_results(messages)["adjustment"]["status"] == "not_possible"
+
+
+def _scenario_dict(**changes):
+    raw = loop_scenario().model_dump(mode="json", exclude={"source"})
+    raw.update(changes)
+    return raw
+
+
+def test_a_control_point_outside_the_space_is_refused_by_name():
+    raw = _scenario_dict(control_points=[{"name": "p", "position": [20.0, 0.0, 0.0]}])
+    with pytest.raises(ScenarioError, match=r"control_points\[0\]\.position"):
+        scenario_from_dict(raw)
+
+
+def test_a_return_to_start_needs_a_route_that_ends_there():
+    raw = _scenario_dict()
+    raw["route"] = {"waypoints": [[0.0, 0.0], [4.0, 0.0]], "return_to_start": True}
+    with pytest.raises(ScenarioError, match=r"route\.waypoints\[1\]"):
+        scenario_from_dict(raw)

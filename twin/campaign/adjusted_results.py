@@ -1,0 +1,173 @@
+"""The adjusted results of a run: its log's network adjusted as a whole
+(:mod:`twin.localization.adjustment`), beside the sequential results.
+
+:func:`adjusted_results` returns what ``results.json`` adds to
+:func:`twin.campaign.log_results.results_from_log`'s content:
+
+- ``adjusted_calibrations``: one entry per calibration, with the same fields as
+  ``calibrations`` (the truth errors included); the parameters' standard deviations are
+  the adjustment's, and the visit's LED points are mapped to W with the adjusted stations.
+  With ``cameras="shared"`` (default) the visits of one camera are one camera, so their
+  entries hold the same camera;
+- ``adjusted_repeatability_mm``: second minus first adjusted calibration of each camera
+  calibrated twice (zero by construction with ``cameras="shared"``);
+- ``adjustment``: ``status`` (``adjusted``, ``nothing_to_add`` or ``not_possible``), a
+  ``message``, what was measured twice (``redundancy``), the chi-square, its degrees of
+  freedom and their ratio, the unknowns, the solver's evaluations and its wall time.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.io.camera_files import camera_from_dict
+from calib.rotation import rot_z
+from calib.tsai import TSAI_PARAMETERS, tsai_from_vector, tsai_reported
+from twin.campaign.log_results import (
+    calibration_entry,
+    reference_sets,
+    visit_points,
+)
+from twin.campaign.network_log import LogNetworkError, network_from_log
+from twin.campaign.records import CALIBRATION, DATASET, POINT
+from twin.localization.adjustment import AdjustedNetwork, NothingToAdjustError, adjust_network
+from twin.truth import TRUTH_CAMERA
+
+MIN_PIXEL_NOISE_PX = 1e-3
+"""The pixel noise the adjustment weighs a noise-free camera's pixels with, px."""
+
+
+def adjustment_settings(scenario: Any) -> dict[str, Any]:
+    """What :func:`adjusted_results` needs of a scenario: each camera's pixel noise as the
+    geometric and batch fidelities project it (at least :data:`MIN_PIXEL_NOISE_PX`), the
+    children's creep, the surveyed control points and the pixel pitch."""
+    return {
+        "pixel_noise_px": {
+            c.name: max(scenario.projected_led_px(c.name), MIN_PIXEL_NOISE_PX)
+            for c in scenario.cameras
+        },
+        "child_creep_m": scenario.campaign.child_creep_m,
+        "control_points": {
+            p.name: np.asarray(p.position, dtype=float)
+            for p in getattr(scenario, "control_points", ())
+            if p.surveyed
+        },
+        "pixel_size_mm": scenario.campaign.pixel_size_mm,
+    }
+
+
+def adjusted_results(
+    messages: Iterable[Any],
+    pixel_noise_px: float | Mapping[str, float] | None = None,
+    *,
+    cameras: str = "shared",
+    child_creep_m: float = 0.0,
+    control_points: Mapping[str, NDArray[np.float64]] | None = None,
+    pixel_size_mm: float = 0.015,
+) -> dict[str, Any]:
+    """Adjust a run's log and return its adjusted results (see the module text).
+
+    Args:
+        messages: the log's messages in file order.
+        pixel_noise_px, cameras, child_creep_m, control_points: as
+            :func:`twin.campaign.network_log.network_from_log`.
+        pixel_size_mm: the sensor's pixel pitch, for kappa1 in 1/mm^2.
+    """
+    messages = list(messages)
+    t0 = time.perf_counter()
+    try:
+        network, index = network_from_log(
+            messages,
+            pixel_noise_px,
+            cameras=cameras,
+            child_creep_m=child_creep_m,
+            control_points=control_points,
+        )
+        adjusted = adjust_network(network)
+    except NothingToAdjustError as exc:
+        return _not_adjusted("nothing_to_add", str(exc), cameras)
+    except LogNetworkError as exc:
+        return _not_adjusted("not_possible", str(exc), cameras)
+    wall = time.perf_counter() - t0
+
+    points = [m.data for m in messages if m.topic == POINT]
+    sizes = {
+        (d["dataset"], d["camera"], d["visit"]): d["points"]
+        for d in (m.data for m in messages if m.topic == DATASET)
+    }
+    references = reference_sets(points, sizes)
+    truths = {
+        m.data["name"]: camera_from_dict(m.data["camera"], "truth")
+        for m in messages
+        if m.topic == TRUTH_CAMERA
+    }
+    records = [m.data for m in messages if m.topic == CALIBRATION]
+    entries = []
+    first: dict[str, NDArray] = {}
+    last: dict[str, NDArray] = {}
+    for rec, stops in zip(records, index.calibration_stops, strict=True):
+        c = index.camera_of(rec["camera"], int(rec["visit"]), cameras)
+        size = tuple(int(v) for v in network.image_sizes[c])
+        camera = tsai_from_vector(adjusted.cameras[c], size)
+        _, cov = tsai_reported(adjusted.cameras[c], adjusted.camera_covariances[c], size)
+        std = dict(zip(TSAI_PARAMETERS, np.sqrt(np.maximum(np.diag(cov), 0.0)), strict=True))
+        _, _, xy = visit_points(points, rec["camera"], int(rec["visit"]), int(rec["points"]))
+        pts, pix = _adjusted_points(network, adjusted, stops)
+        entries.append(
+            calibration_entry(rec, camera, std, (pts, pix, xy), references, truths, pixel_size_mm)
+        )
+        first.setdefault(rec["camera"], camera.position)
+        last[rec["camera"]] = camera.position
+    return {
+        "adjusted_calibrations": entries,
+        "adjusted_repeatability_mm": {
+            c: (1e3 * (last[c] - first[c])).tolist()
+            for c in first
+            if sum(e["camera"] == c for e in entries) > 1
+        },
+        "adjustment": {
+            "status": "adjusted",
+            "message": f"adjusted {len(network.stations)} stations and "
+            f"{len(network.cameras)} cameras together",
+            "cameras": cameras,
+            "redundancy": list(adjusted.redundancy),
+            "chi2": adjusted.chi2,
+            "dof": adjusted.dof,
+            "variance_factor": adjusted.variance_factor,
+            "unknowns": int(
+                4 * (len(network.stations) - 1)
+                + 3 * int((~network.known_targets).sum())
+                + 11 * len(network.cameras)
+            ),
+            "evaluations": adjusted.evaluations,
+            "wall_time_s": wall,
+        },
+    }
+
+
+def _adjusted_points(
+    network: Any, adjusted: AdjustedNetwork, stops: tuple[int, ...]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A calibration's LED points mapped to W with the adjusted stations, and its pixels."""
+    pts, pix = [], []
+    for i in stops:
+        s = network.led_sightings[i]
+        pose = adjusted.stations[s.station]
+        pts.append(s.leds_level @ rot_z(pose[0]).T + pose[1:])
+        pix.append(s.pixels)
+    if not pts:
+        return np.zeros((0, 3)), np.zeros((0, 2))
+    return np.vstack(pts), np.vstack(pix)
+
+
+def _not_adjusted(status: str, message: str, cameras: str) -> dict[str, Any]:
+    return {
+        "adjusted_calibrations": [],
+        "adjusted_repeatability_mm": {},
+        "adjustment": {"status": status, "message": message, "cameras": cameras},
+    }
