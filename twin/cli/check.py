@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +12,6 @@ from rich.live import Live
 from rich.markup import escape
 from rich.table import Table
 
-from twin.campaign import Progress
 from twin.campaign.check import (
     DEFAULT_FALSE_ALARM_RATE,
     DEFAULT_STOPS,
@@ -22,6 +20,7 @@ from twin.campaign.check import (
     MIN_STOPS,
 )
 from twin.cli import arguments
+from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED
 
@@ -115,26 +114,6 @@ def _stops(text: str) -> int:
     return value
 
 
-class _Display:
-    """A one-line live status: stage, robot, camera, points, elapsed time."""
-
-    def __init__(self, live: Live) -> None:
-        self.live = live
-        self.t0 = time.perf_counter()
-
-    def __call__(self, p: Progress) -> None:
-        grid = Table.grid(padding=(0, 2))
-        stage = {"reference": "first station", "station": "visit station"}.get(p.stage, p.stage)
-        grid.add_row(
-            f"[bold]{escape(stage)}[/bold]",
-            f"robot {escape(p.robot or '-')}",
-            f"camera {escape(p.camera or '-')}",
-            f"points {p.points}",
-            f"{time.perf_counter() - self.t0:6.1f} s",
-        )
-        self.live.update(grid)
-
-
 def _probability(text: str) -> float:
     """A probability strictly between 0 and 1."""
     value = arguments.finite_float(text)
@@ -172,7 +151,18 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         with Live(console=console, refresh_per_second=4, transient=True) as live:
-            results = _check(args, sc, out, strategy, _Display(live), console)
+            results = _check(
+                args,
+                sc,
+                out,
+                strategy,
+                LiveStatus(
+                    live,
+                    {"reference": "first station", "station": "visit station"},
+                    calibrated=False,
+                ),
+                console,
+            )
     except (CamerasFolderError, ValueError) as exc:
         console.print(f"[red]error:[/red] {escape(str(exc))}")
         return 2

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 from rich.console import Console
@@ -13,6 +12,7 @@ from rich.table import Table
 
 from twin.campaign.strategies import strategy_for
 from twin.cli import arguments
+from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED
 
@@ -71,27 +71,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-class _Display:
-    """A one-line live status: stage, robot, camera, points, calibrations, elapsed time."""
-
-    def __init__(self, live: Live) -> None:
-        self.live = live
-        self.t0 = time.perf_counter()
-
-    def __call__(self, p: object) -> None:
-        grid = Table.grid(padding=(0, 2))
-        elapsed = time.perf_counter() - self.t0
-        grid.add_row(
-            f"[bold]{p.stage}[/bold]",  # type: ignore[attr-defined]
-            f"robot {p.robot or '-'}",  # type: ignore[attr-defined]
-            f"camera {p.camera or '-'}",  # type: ignore[attr-defined]
-            f"points {p.points}",  # type: ignore[attr-defined]
-            f"calibrated {p.calibrated}",  # type: ignore[attr-defined]
-            f"{elapsed:6.1f} s",
-        )
-        self.live.update(grid)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run; exit code 0, 1 when no camera was calibrated, 2 for bad input, 130 when
     interrupted."""
@@ -122,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with Live(console=console, refresh_per_second=4, transient=True) as live:
             if args.rig is not None:
-                results = _run_on_rig(args, sc, out, strategy, _Display(live), console)
+                results = _run_on_rig(args, sc, out, strategy, LiveStatus(live), console)
                 if results is None:
                     return 2
             else:
@@ -134,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
                     fidelity=fidelity,
                     seed=args.seed,
                     noise=not args.no_noise,
-                    progress=_Display(live),
+                    progress=LiveStatus(live),
                     report=not args.no_report,
                     strategy=strategy,
                     overwrite=args.overwrite,
@@ -155,7 +134,7 @@ def _run_on_rig(
     sc: object,
     out: Path,
     strategy: str,
-    display: _Display,
+    display: LiveStatus,
     console: Console,
 ) -> dict | None:
     """The campaign on the rig file's devices; None (and the error shown) for a bad rig file
