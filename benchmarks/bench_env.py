@@ -162,7 +162,8 @@ def main() -> None:
             console.print(f"{mode} {n} {policy}: {rate:.1f} steps/s")
     console.print(table)
     console.print("target: 1000 steps/s with random moves on one core")
-    agreement(args.episodes, console)
+    if args.episodes > 0:  # --episodes 0: the speed table only
+        agreement(args.episodes, console)
 
 
 if __name__ == "__main__":
