@@ -137,7 +137,8 @@ def adjust_trials(
 ) -> dict[tuple[str, int], AdjustedVisits]:
     """Adjust each trial's network; per visit, its adjusted camera against the truth.
 
-    A trial with nothing measured twice (a camera calibrated once only) has NaN."""
+    A trial with nothing measured twice (a camera calibrated once only), or whose network
+    the solver cannot solve, has NaN."""
     out = {
         v: AdjustedVisits(
             np.full(trials, np.nan),
@@ -151,8 +152,8 @@ def adjust_trials(
         builder, groups = recorder.network(k, pixel_noise_px, child_creep_m)
         try:
             adjusted = adjust_network(builder.build())
-        except NothingToAdjustError:
-            continue
+        except (NothingToAdjustError, ValueError, RuntimeError, np.linalg.LinAlgError):
+            continue  # nothing measured twice, or a network the solver cannot solve: NaN
         for (camera, visit), _ in groups.items():
             if (camera, visit) not in out:
                 continue

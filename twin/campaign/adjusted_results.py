@@ -11,7 +11,8 @@
   entries hold the same camera;
 - ``adjusted_repeatability_mm``: second minus first adjusted calibration of each camera
   calibrated twice (zero by construction with ``cameras="shared"``);
-- ``adjustment``: ``status`` (``adjusted``, ``nothing_to_add`` or ``not_possible``), a
+- ``adjustment``: ``status`` (``adjusted``, ``nothing_to_add``, ``not_possible`` or
+  ``failed``), a
   ``message``, what was measured twice (``redundancy``), the chi-square, its degrees of
   freedom and their ratio, the unknowns, the solver's evaluations and its wall time.
 """
@@ -93,6 +94,12 @@ def adjusted_results(
         return _not_adjusted("nothing_to_add", str(exc), cameras)
     except LogNetworkError as exc:
         return _not_adjusted("not_possible", str(exc), cameras)
+    except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+        # A network the solver cannot solve (too few points for a camera, a singular
+        # normal matrix): the sequential results stand; the run is not lost for it.
+        return _not_adjusted(
+            "failed", f"the adjustment failed: {type(exc).__name__}: {exc}", cameras
+        )
     wall = time.perf_counter() - t0
 
     points = [m.data for m in messages if m.topic == POINT]

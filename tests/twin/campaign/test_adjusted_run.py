@@ -118,3 +118,17 @@ def test_a_return_to_start_needs_a_route_that_ends_there():
     raw["route"] = {"waypoints": [[0.0, 0.0], [4.0, 0.0]], "return_to_start": True}
     with pytest.raises(ScenarioError, match=r"route\.waypoints\[1\]"):
         scenario_from_dict(raw)
+
+
+def test_a_network_the_solver_cannot_solve_leaves_the_run_its_sequential_results(run, monkeypatch):
+    import twin.campaign.adjusted_results as module
+
+    def singular(network):
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(module, "adjust_network", singular)
+    _, _, out = run
+    result = module.adjusted_results(read_log(out / "log.mcap").messages)
+    assert result["adjustment"]["status"] == "failed"
+    assert "Singular matrix" in result["adjustment"]["message"]
+    assert result["adjusted_calibrations"] == []
