@@ -56,6 +56,17 @@ STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
 ``calibration.min_visible_fraction``)."""
 
+START_PRISM_DISTANCES = (1.5, 2.0, 1.0, 2.5)
+"""How far from the start a prism left there stands, m, in the order tried."""
+START_PRISM_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0)
+"""Its direction from the start, degrees from straight behind the route's first leg."""
+START_PRISM_CLEARANCE = 0.3
+"""The prism's pole stands this far from walls and obstacles at least, m."""
+START_PRISM_OFF_ROUTE = 0.8
+"""And this far from the route and from the children's starts at least, m."""
+START_PRISM_SIGHT = 8.0
+"""The parent measures it from every station this close, m."""
+
 CHILD_OFFSETS = ((1.5, 1.5), (1.5, -1.5), (-1.5, 1.5), (-1.5, -1.5), (2.5, 1.0), (2.5, -1.0))
 """Where the children may start, (x, y) m from the parent in W; the first two that fit."""
 
@@ -150,7 +161,9 @@ def plan_site(
         name: the scenario's name. start: (x m, y m, yaw rad) of the parent's start in the
             map (default: chosen). visits: the cameras in the order to calibrate them (a
             camera may come twice, as in the paper's 1-2-3-2-1); default: each camera once,
-            in the shortest tour's order. return_to_start: end the route at the start.
+            in the shortest tour's order. return_to_start: end the route at the start, and
+            leave a prism near it (a control point) that closes the loop in the global
+            adjustment (none if no place near the start is clear).
         resolution: the boxes' grid, m. map_file: the map's path as the scenario keeps it.
         seed: the scenario's seed.
 
@@ -223,6 +236,7 @@ def plan_site(
     if not return_to_start:
         route = _run_out(route, reach_w)
     children = _children(floor, pose)
+    prism = _start_prism(floor, pose, route, children) if return_to_start else None
     scenario = _scenario(
         name=name,
         seed=seed,
@@ -232,6 +246,7 @@ def plan_site(
         children=children,
         route=route,
         return_to_start=return_to_start,
+        start_prism=prism,
         visits=[
             (cam, stations[cam].xy, heading)
             for cam, heading in zip(sequence, arrivals, strict=True)
@@ -451,6 +466,30 @@ def _heading(points: Sequence[NDArray]) -> float:
     return float(np.degrees(np.arctan2(d[1], d[0])))
 
 
+def _start_prism(
+    floor: FloorMap, pose: MapPose, route: NDArray, children: Sequence[NDArray]
+) -> NDArray[np.float64] | None:
+    """Where to leave a prism near the start to close the loop (W, m): the first place,
+    trying behind the start first, that is on the floor clear of walls, in plain sight of
+    the start, off the route and away from the children's starts; None if none is."""
+    free = pose.geometry2world(floor.reachable(START_PRISM_CLEARANCE))
+    path = LineString(route) if len(route) > 1 else Point(0.0, 0.0)
+    ahead = (
+        math.atan2(route[1][1] - route[0][1], route[1][0] - route[0][0]) if len(route) > 1 else 0.0
+    )
+    for r in START_PRISM_DISTANCES:
+        for turn in START_PRISM_TURNS_DEG:
+            a = ahead + math.pi + math.radians(turn)
+            xy = np.array([r * math.cos(a), r * math.sin(a)])
+            if (
+                free.contains(LineString([(0.0, 0.0), tuple(xy)]))
+                and path.distance(Point(*xy)) >= START_PRISM_OFF_ROUTE
+                and all(np.linalg.norm(xy - c) >= START_PRISM_OFF_ROUTE for c in children)
+            ):
+                return xy
+    return None
+
+
 def _children(floor: FloorMap, pose: MapPose) -> list[NDArray[np.float64]]:
     free = pose.geometry2world(floor.reachable(PIONEER3DX.radius + 0.1))
     out: list[NDArray[np.float64]] = []
@@ -473,9 +512,21 @@ def _scenario(
     children: list[NDArray],
     route: NDArray,
     return_to_start: bool,
+    start_prism: NDArray | None,
     visits: list[tuple[str, NDArray, float]],
     site: dict[str, Any],
 ) -> dict[str, Any]:
+    controls = (
+        []
+        if start_prism is None
+        else [
+            {
+                "name": "start_prism",
+                "position": [float(start_prism[0]), float(start_prism[1]), 0.0],
+                "sight_radius_m": START_PRISM_SIGHT,
+            }
+        ]
+    )
     return {
         "name": name,
         "description": f"Planned from the map {site['map']}: {len(cameras)} cameras.",
@@ -490,6 +541,7 @@ def _scenario(
             ],
         },
         "route": {"waypoints": route.tolist(), "return_to_start": return_to_start},
+        "control_points": controls,
         "calibration": {
             "visits": [
                 {"camera": cam, "station": xy.tolist(), "yaw_deg": heading}

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from shapely.geometry import LineString, Point
 
 from twin.cli import main
 from twin.planning.frames import MapPose
@@ -157,6 +158,12 @@ def test_a_given_order_and_start_are_kept_and_the_route_returns(tmp_path):
     assert [v.camera for v in sc.calibration.visits] == ["cam1", "cam2", "cam1"]
     assert sc.route.waypoints[-1] == pytest.approx((0.0, 0.0), abs=1e-9)
     assert sc.route.return_to_start  # the campaign drives back, not only the route
+    # A prism near the start closes the loop: in plain sight of the start, off the route.
+    (prism,) = sc.control_points
+    xy = np.asarray(prism.position[:2])
+    assert 1.0 <= np.linalg.norm(xy) <= 2.5
+    assert prism.position[2] == 0.0
+    assert LineString(sc.route.waypoints).distance(Point(*xy)) >= 0.8
     assert sc.site.map_pose == pytest.approx((0.0, 6.0, 90.0))
 
 
