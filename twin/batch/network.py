@@ -5,8 +5,8 @@ executor measures it (:class:`NetworkRecorder`), and each trial's network adjust
 A trial's network is the same as its log's would be: the stations as CPS fixed them, the
 children's stands from both stations that measured them, the LED stops of each calibrated
 visit (the LEDs the trial found), each camera started from its first calibration. The
-adjustment is a sparse least-squares solve per trial (about 0.3 s on the paper's hall),
-tens of times what the batch spends on a trial: it runs only when asked
+adjustment is a sparse least-squares solve per trial (about 75 ms on the paper's hall),
+seven times what the batch spends on a trial: it runs only when asked
 (``twin montecarlo --adjust``).
 """
 
