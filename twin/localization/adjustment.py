@@ -19,10 +19,10 @@ and one target or camera, so a hall campaign's Jacobian (a few thousand residual
 600 unknowns) has about 2 % of its entries non-zero. :func:`scipy.optimize.least_squares`
 takes a sparse Jacobian only with its iterative trust-region solver (LSMR), which on this
 problem's mixed scales (pixels and focal lengths of hundreds, radians, metres) stopped at
-200 evaluations short of the minimum (8 s on the hall); the direct solve converges in 4 to
-8 evaluations (0.07 s on an idle core). The parameters' covariance is the inverse of ``J^T J`` at the
-solution (a priori: the weights are the instruments' stated noise), solved by the same
-sparse LU for the columns asked for.
+200 evaluations short of the minimum (8 s on the hall, both cores loaded); the direct
+solve converges in 4 to 8 evaluations (0.07 s on an idle core). The parameters'
+covariance is the inverse of ``J^T J`` at the solution (a priori: the weights are the
+instruments' stated noise), solved by the same sparse LU for the columns asked for.
 
 Without anything measured twice beyond the chain of CPS steps (a camera calibrated from
 two stations, a control point) the adjusted stations are CPS's to first order; only the
