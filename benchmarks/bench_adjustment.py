@@ -15,7 +15,7 @@ and prints, per visit: the RMS true position error of the sequential calibration
 each adjustment, the adjustment's predicted RMS (its covariance) over the Monte-Carlo RMS,
 and the repeatability (second minus first calibration of a camera, RMS of its length).
 
-    .venv/bin/python benchmarks/bench_adjustment.py [--trials 300] [--workers 2]
+    .venv/bin/python benchmarks/bench_adjustment.py [--trials 300] [--workers 2] [--scenarios F ...]
 """
 
 from __future__ import annotations
@@ -149,13 +149,14 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=300)
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--master-seed", type=int, default=20080922)
+    ap.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), help="scenario files")
     args = ap.parse_args()
     from twin.montecarlo.seeds import trial_seed
 
     seeds = [trial_seed(args.master_seed, i) for i in range(args.trials)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        for name in SCENARIOS:
+        for name in args.scenarios:
             rows = list(pool.map(trial, [(name, s) for s in seeds]))
             report(name, rows)
     load = os.getloadavg()[0]
