@@ -17,10 +17,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from calib.camera import TsaiCamera
 from calib.camera_batch import TsaiCameras
+from calib.metrics_batch import pose_errors
 from calib.tsai import tsai_from_vector, tsai_vector
 from twin.localization.adjustment import NothingToAdjustError, adjust_network
 from twin.localization.network import NetworkBuilder
@@ -161,9 +161,9 @@ def adjust_trials(
             cam = tsai_from_vector(adjusted.cameras[c], builder.sizes[c])
             truth = truths[camera]
             v = out[(camera, visit)]
+            errors = pose_errors(TsaiCameras.from_cameras([cam]), truth)
             v.position_offset[k] = cam.position - truth.position
-            v.position_error[k] = np.linalg.norm(cam.position - truth.position)
-            turn = cam.world2cam_r @ truth.world2cam_r.T
-            v.rotation_error[k] = Rotation.from_matrix(turn).magnitude()
+            v.position_error[k] = errors.position_m[0]
+            v.rotation_error[k] = errors.rotation_rad[0]
             v.predicted[k] = np.sqrt(np.trace(adjusted.camera_covariances[c][8:, 8:]))
     return out

@@ -89,14 +89,14 @@ def chunks(
 
 def _adjusted_columns(v: AdjustedVisits | None, k: int) -> dict[str, float]:
     """The adjusted columns of trial ``k`` of a visit (NaN without an adjustment)."""
-    if v is None or not math.isfinite(v.position_error[k]):
-        return adjusted_columns(None)
-    return {
-        "adjusted_position_error_mm": mm(v.position_error[k]),
-        "adjusted_rotation_error_deg": math.degrees(v.rotation_error[k]),
-        **{f"adjusted_position_d{a}_mm": mm(v.position_offset[k, i]) for i, a in enumerate("xyz")},
-        "adjusted_predicted_rms_mm": mm(v.predicted[k]),
-    }
+    if v is None:
+        return adjusted_columns(math.nan, math.nan, np.full(3, math.nan), math.nan)
+    return adjusted_columns(
+        mm(v.position_error[k]),
+        math.degrees(v.rotation_error[k]),
+        1e3 * v.position_offset[k],
+        mm(v.predicted[k]),
+    )
 
 
 def check_batch_scenario(plan_scenario: Any) -> None:

@@ -161,21 +161,32 @@ def _offset_mm(calibration: dict[str, Any] | None) -> Any:
     return estimated - np.asarray(calibration["truth"]["position_mm"], dtype=float)
 
 
-def adjusted_columns(entry: dict[str, Any] | None) -> dict[str, float]:
-    """The columns of a visit's calibration in the global adjustment (a result's
-    ``adjusted_calibrations`` entry; NaN where there is none): its true position and
-    rotation errors, its centre minus the true one (mm) and the adjustment's predicted RMS
-    position error (mm, from its covariance)."""
+def adjusted_columns(
+    position_error_mm: float, rotation_error_deg: float, offset_mm: Any, predicted_mm: float
+) -> dict[str, float]:
+    """The columns of a visit's calibration in the global adjustment: its true position
+    (mm) and rotation (deg) errors, its (3,) centre minus the true one (mm) and the
+    adjustment's predicted RMS position error (mm, from its covariance); NaN for none."""
+    return {
+        "adjusted_position_error_mm": float(position_error_mm),
+        "adjusted_rotation_error_deg": float(rotation_error_deg),
+        **{f"adjusted_position_d{a}_mm": float(offset_mm[i]) for i, a in enumerate("xyz")},
+        "adjusted_predicted_rms_mm": float(predicted_mm),
+    }
+
+
+def adjusted_entry_columns(entry: dict[str, Any] | None) -> dict[str, float]:
+    """:func:`adjusted_columns` of a result's ``adjusted_calibrations`` entry (NaN where
+    there is none)."""
     truth = entry.get("truth") if entry else None
     std = entry.get("std", {}) if entry else {}
     sigma = [float(std.get(k, math.nan)) for k in ("x", "y", "z")]
-    offset = _offset_mm(entry)
-    return {
-        "adjusted_position_error_mm": _get(truth, "position_error_mm"),
-        "adjusted_rotation_error_deg": _get(truth, "rotation_error_deg"),
-        **{f"adjusted_position_d{axis}_mm": float(offset[i]) for i, axis in enumerate("xyz")},
-        "adjusted_predicted_rms_mm": mm(math.sqrt(sum(v * v for v in sigma))),
-    }
+    return adjusted_columns(
+        _get(truth, "position_error_mm"),
+        _get(truth, "rotation_error_deg"),
+        _offset_mm(entry),
+        mm(math.sqrt(sum(v * v for v in sigma))),
+    )
 
 
 def parent_columns(
@@ -228,7 +239,7 @@ def trial_rows(
                 "local_error_3d_mean_mm": _get(local, "error_3d_mean_mm"),
                 "predicted_transfer_rms_mm": mm(p.transfer_rms_m) if p else math.nan,
                 "predicted_calibration_rms_mm": mm(p.calibration_rms_m) if p else math.nan,
-                **adjusted_columns(adjusted.get((camera, visit))),
+                **adjusted_entry_columns(adjusted.get((camera, visit))),
                 **trial_level,
             }
         )
