@@ -5,7 +5,8 @@ within its ``sight_radius_m``: one shot, aimed where the point is expected (its 
 position, or where the parent first measured it, or, before that, where the scenario puts
 it). Each measurement is recorded (``/campaign/control_sighting``) for the global
 adjustment, which closes the loop with it; a point that does not answer, or answers too
-far from where it is expected (another prism in the aim's cone), is a failure
+far from where it is expected (another prism in the aim's cone; the parent's own
+uncertainty widens the gate, :func:`later_gate`), is a failure
 (``control_point_not_seen``, ``control_point_mismatch``) and is not recorded. At the end,
 a point never measured, or measured once only, is a failure too (it closes no loop).
 """
@@ -31,8 +32,19 @@ FIRST_GATE_M = 0.5
 
 GATE_M = 0.15
 """How far a later measurement may lie from the first (or the surveyed position), m: the
-parent's drift over a long loop (tens of mm) passes; a child's prism (0.3 m and more from
-any control point the route passes) does not."""
+parent's drift over a loop of a hall (tens of mm) passes; a child's prism (0.3 m and more
+from any control point the route passes) does not."""
+
+GATE_SIGMAS = 3.0
+"""After a long travel the gate is this many standard deviations of the parent's
+horizontal position (largest axis), where that is more than :data:`GATE_M`: the drift the
+loop is there to close must not be what rejects it."""
+
+
+def later_gate(parent: ParentPose) -> float:
+    """How far a later measurement may lie from where it is expected, m (see
+    :data:`GATE_M`, :data:`GATE_SIGMAS`)."""
+    return max(GATE_M, GATE_SIGMAS * parent.horizontal_std)
 
 
 class ControlPoints:
@@ -78,7 +90,7 @@ class ControlPoints:
                 continue
             level = shot.to_cartesian()
             world = parent.level2world(level)
-            gate = GATE_M if point.name in self.measured else FIRST_GATE_M
+            gate = later_gate(parent) if point.name in self.measured else FIRST_GATE_M
             off = float(np.linalg.norm(world - expected))
             if off > gate:
                 self.journal.failure(

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
 from twin.campaign.plan.accurate_stops import choose_stops, partial_view_stops
-from twin.campaign.plan.formation import formation
+from twin.campaign.plan.formation import formation_tried, sight_margins
 from twin.campaign.plan.legs import leg_goals
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
@@ -124,28 +124,40 @@ class PaperStrategy(Strategy):
             self._leg_ends = leg_goals(path, s_now, s_goal, self._step(view))
         else:
             s_now = self._arc
-        ends, direction = self._leg_ends, self._direction
-        step = self._step(view)
+        if not self._leg_ends:
+            self._leg_ends = None
+            return None
+        direction, step = self._direction, self._step(view)
         form = view.scenario.campaign.formation
-        while ends:
-            s_next = ends[0]
-            leg = self.leg_between(view, goal, s_now, s_next, len(ends) == 1, direction, form)
-            if leg is None:
+        s_next = self._leg_ends[0]
+        margins = sight_margins(view.parent.horizontal_std)
+        legs: dict[float, tuple[int, Leg] | None] = {}  # by s_next: the widest margin kept
+        # The widest margin first, with legs shortened for it (a corner is turned in more
+        # legs); the nominal one where nothing else fits.
+        for k in range(len(margins)):
+            ends = list(self._leg_ends)
+            while True:
+                s_next = ends[0]
+                if s_next not in legs:
+                    legs[s_next] = self._leg_tried(
+                        view, goal, s_now, s_next, len(ends) == 1, direction, form, margins
+                    )
+                found = legs[s_next]
+                # A leg keeping a wider margin was taken at an earlier k.
+                if found is not None and found[0] == k:
+                    ends.pop(0)
+                    self._leg_ends, self._reached_s = ends, s_next
+                    return found[1]
                 # No room for the children ahead: a shorter leg (down to a fraction of a step).
-                if abs(s_next - s_now) > SHORTEST_LEG * step:
-                    ends.insert(0, 0.5 * (s_now + s_next))
-                    continue
-                self._leg_ends = None
-                return NoLeg(
-                    "no_formation",
-                    f"no place for the children ahead of s = {s_next:.1f} m",
-                    f"no formation for the leg to s = {s_next:.1f} m",
-                )
-            ends.pop(0)
-            self._reached_s = s_next
-            return leg
-        self._leg_ends = None
-        return None
+                if abs(s_next - s_now) <= SHORTEST_LEG * step:
+                    break
+                ends.insert(0, 0.5 * (s_now + s_next))
+        self._leg_ends = None  # s_next: the shortest leg tried with the nominal margin
+        return NoLeg(
+            "no_formation",
+            f"no place for the children ahead of s = {s_next:.1f} m",
+            f"no formation for the leg to s = {s_next:.1f} m",
+        )
 
     def _follow_parent(self, parent_xy: NDArray[np.float64]) -> None:
         """After a leg the parent fixed its pose: the group is where it stands (``_arc``)."""
@@ -162,15 +174,35 @@ class PaperStrategy(Strategy):
         arrives: bool,
         direction: float,
         form: FormationSettings,
+        margins: tuple[float, ...] | None = None,
     ) -> Leg | None:
         """The leg from arc length ``s_now`` to ``s_next`` (the goal's station if
         ``arrives``) with the children in formation ``form``, or None where they have no
-        room. Changes nothing: the caller that takes the leg sets ``_reached_s``."""
+        room. ``margins``: the formation's sight margins to try in turn, m (default
+        :func:`twin.campaign.plan.formation.sight_margins` of the parent's estimate).
+        Changes nothing: the caller that takes the leg sets ``_reached_s``."""
+        if margins is None:
+            margins = sight_margins(view.parent.horizontal_std)
+        found = self._leg_tried(view, goal, s_now, s_next, arrives, direction, form, margins)
+        return None if found is None else found[1]
+
+    def _leg_tried(
+        self,
+        view: CampaignView,
+        goal: Visit | Return,
+        s_now: float,
+        s_next: float,
+        arrives: bool,
+        direction: float,
+        form: FormationSettings,
+        margins: tuple[float, ...],
+    ) -> tuple[int, Leg] | None:
+        """:meth:`leg_between`, with the index in ``margins`` of the margin kept."""
         path = self.path
         parent_xy = view.parent.translation[:2]
         next_xy = goal.station if arrives else path.at(s_next)
         order = self._children_in_order(view, direction)
-        stops = formation(
+        found = formation_tried(
             view.scenario.space,
             self.marker.cubes_body,
             view.instrument_range,
@@ -181,10 +213,12 @@ class PaperStrategy(Strategy):
             direction,
             form,
             float(view.parent.translation[2]),
-            waiting_xy=view.robot_pose(order[1])[:2],
+            view.robot_pose(order[1])[:2],
+            margins,
         )
-        if stops is None:
+        if found is None:
             return None
+        kept, stops = found
         s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
         moves = tuple(
             self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
@@ -192,7 +226,7 @@ class PaperStrategy(Strategy):
         )
         heading = goal.yaw if arrives else path.heading(s_next) + (0 if direction > 0 else math.pi)
         parent = self._move(view.parent_name, s_now, s_next, Stop(next_xy, heading))
-        return Leg(moves, parent, arrives)
+        return kept, Leg(moves, parent, arrives)
 
     def _step(self, view: CampaignView) -> float:
         return view.scenario.campaign.formation.step

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import Journal, RobotJournal
 from twin.campaign.plan.clearance import ROBOT_CLEARANCE, path_clear, robot_fits
+from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
@@ -40,6 +41,17 @@ TURNS_DEG = (30.0, -60.0)
 
 SIDESTEPS = (0.4, -0.8)
 """How the parent steps sideways, one after the other, m, when it cannot fix its pose."""
+
+LONG_DRIVE_M = 30.0
+"""A child's straight drive longer than this, m, is tracked by the standing parent. A
+robot's heading is known to about a degree after it stops and turns, and its wheel
+odometry carries that error along the drive (0.5 m of side error after 30 m): a child
+sent back 100 m and more (from the far end of a reference data set, say) would stop out
+of the instrument's aim, or behind a corner it was planned clear of."""
+
+TRACK_STEP_M = 10.0
+"""A tracked drive stops about every this many metres, m, to be measured, and the child's
+odometry is corrected from its marker's measured pose."""
 
 FIX_ATTEMPTS = 2 + len(SIDESTEPS)
 """Attempts at the parent's fix: twice where it stopped (starting from either child), then
@@ -96,7 +108,7 @@ class Travel:
                 self.journal.failure(
                     "child_blocked", "the child stopped short of its stop", move.robot
                 )
-            if self.place_child_turning(move.robot) is None:
+            if self.place_child_turning(move.robot) is None and self._drive_again(move) is None:
                 raise CampaignAborted(f"the parent cannot measure {move.robot}")
         for child in order[:-1]:
             self.check_stayed(child, order[-1])
@@ -118,7 +130,7 @@ class Travel:
         # route first.
         blocked = not path_clear(self.space, here, first, 0.3)
         far = np.linalg.norm(here - move.entry) > ROUTE_TOLERANCE
-        if blocked and far and not base.drive_to(move.entry).reached:
+        if blocked and far and not self._drive(base, move.entry):
             return False
         waypoints = list(move.corners)
         last = waypoints[-1] if waypoints else here
@@ -128,9 +140,43 @@ class Travel:
         ):
             waypoints.append(move.on_route)  # along the route, then sideways to the stop
         for point in waypoints:
-            if not base.drive_to(point).reached:
+            if not self._drive(base, point):
                 return False
-        return base.drive_to(move.stop.xy, move.stop.yaw).reached
+        return self._drive(base, move.stop.xy, move.stop.yaw)
+
+    def _drive(
+        self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
+    ) -> bool:
+        """One straight drive; a child's longer than :data:`LONG_DRIVE_M` in pieces of about
+        :data:`TRACK_STEP_M`, measured after each. Whether the goal was reached."""
+        if base.name in self.rig.children:
+            here = base.odometry().pose[:2]
+            length = float(np.linalg.norm(goal_xy - here))
+            if length > LONG_DRIVE_M:
+                pieces = math.ceil(length / TRACK_STEP_M)
+                heading = math.atan2(*(goal_xy - here)[::-1])
+                for k in range(1, pieces):
+                    point = here + (goal_xy - here) * (k / pieces)
+                    if not base.drive_to(point, self._showing(point, heading)).reached:
+                        return False
+                    self._track(base.name)
+        return base.drive_to(goal_xy, goal_yaw).reached
+
+    def _showing(self, xy: NDArray[np.float64], heading: float) -> float:
+        """The heading nearest ``heading`` (rad) at which a child at ``xy`` shows all its
+        prisms to the standing parent (``heading`` itself where none does)."""
+        eye = self.cps.parent.translation
+        turned = unhidden_yaw(xy, heading, self.marker.cubes_body, eye[None], self.space.floor_z)
+        return heading if turned is None else turned
+
+    def _track(self, child: str) -> None:
+        """Measure a child on its way (the parent stands) and correct its odometry; a child
+        the parent cannot see drives on as it is."""
+        obs = self.measure(child)
+        if obs is None:
+            return
+        self.journal.event("child_tracked", "measured on a long drive", child)
+        self._correct_child_pose(child, obs, self.cps.parent)
 
     # -- measuring and placing children -------------------------------------------------------
     def child_pose(self, child: str) -> NDArray[np.float64]:
@@ -190,6 +236,28 @@ class Travel:
             self.rig.children[child].drive_to(pose[:2], pose[2] + math.radians(turn))
             obs = self.place_child(child)
         return obs
+
+    def _drive_again(self, move: Move) -> ChildObservation | None:
+        """A child the parent cannot measure where it stopped, turned or not, may have
+        stopped off its goal (its odometry carries its heading's error) behind what the
+        plan kept clear: it drives back to where it stood at the parent's last fix (which
+        the parent saw from where it stands), is measured there and its odometry
+        corrected, and drives to its stop again. Its observation there, or None."""
+        child = move.robot
+        if child not in self.placed:
+            return None
+        base = self.rig.children[child]
+        stand, _ = self.cps.child_position(child)
+        self.journal.event("child_drove_again", "back to its last stand and again", child)
+        if not self._drive(base, stand[:2]):
+            return None
+        seen = self.measure(child)
+        if seen is None:
+            return None
+        self._correct_child_pose(child, seen, self.cps.parent)
+        if not self.drive_along(base, move):
+            return None
+        return self.place_child_turning(child)
 
     def check_stayed(self, child: str, mover: str) -> None:
         """Measure a placed child again after ``mover`` drove (the parent stands), as a

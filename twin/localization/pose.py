@@ -65,6 +65,13 @@ class ParentPose:
         """(3, 3) covariance of the translation, m^2."""
         return self.covariance[1:, 1:]
 
+    @property
+    def horizontal_std(self) -> float:
+        """Predicted standard deviation of the horizontal position along its most
+        uncertain axis, m."""
+        largest = float(np.linalg.eigvalsh(self.covariance[1:3, 1:3]).max())
+        return float(np.sqrt(max(largest, 0.0)))
+
     def level2world(self, points_level: ArrayLike) -> NDArray[np.float64]:
         """Map (..., 3) points of the levelled frame to the world (paper eq. 1), m."""
         return level2world(points_level, self.yaw, self.translation)

@@ -39,6 +39,28 @@ SIGHT_MARGIN = 0.10
 centimetres from its goal (further on wheel odometry), and a prism planned to graze a
 corner would be hidden."""
 
+UNCERTAINTY_SIGMAS = 2.0
+"""Standard deviations of the parent's position estimate that a formation's lines of sight
+keep from obstacles, where that is more than :data:`SIGHT_MARGIN`."""
+
+
+def sight_margins(parent_std: float) -> tuple[float, ...]:
+    """The sight margins a formation tries, in turn, m: the widest first,
+    :data:`SIGHT_MARGIN` last (where nothing else fits).
+
+    The group is planned where CPS believes it stands; after a long travel the whole group
+    truly stands off that by about the parent's position error (the children are placed
+    from the parent), and a line of sight planned to pass a corner by :data:`SIGHT_MARGIN`
+    grazes it in truth. Where :data:`UNCERTAINTY_SIGMAS` times the parent's horizontal
+    position standard deviation is more than that, it is tried first.
+
+    Args:
+        parent_std: the parent's horizontal position standard deviation along its most
+            uncertain axis, m (:attr:`twin.localization.pose.ParentPose.horizontal_std`).
+    """
+    wide = UNCERTAINTY_SIGMAS * parent_std
+    return (wide, SIGHT_MARGIN) if wide > SIGHT_MARGIN else (SIGHT_MARGIN,)
+
 
 def _instrument(xy: ArrayLike, instrument_z: float) -> NDArray[np.float64]:
     p = np.asarray(xy, dtype=float).reshape(2)
@@ -57,7 +79,31 @@ def formation(
     form: FormationSettings,
     instrument_z: float,
     waiting_xy: ArrayLike | None = None,
+    sight_margin: float = SIGHT_MARGIN,
 ) -> list[Stop] | None:
+    """Stops of the two children ahead of the parent's next station (see
+    :func:`formation_tried`, with one sight margin), or None."""
+    found = formation_tried(
+        space, cubes_body, instrument_range, path, s_next, parent_now, parent_next,
+        direction, form, instrument_z, waiting_xy, (sight_margin,),
+    )  # fmt: skip
+    return None if found is None else found[1]
+
+
+def formation_tried(
+    space: Space,
+    cubes_body: ArrayLike,
+    instrument_range: tuple[float, float],
+    path: RoutePath,
+    s_next: float,
+    parent_now: ArrayLike,
+    parent_next: ArrayLike,
+    direction: float,
+    form: FormationSettings,
+    instrument_z: float,
+    waiting_xy: ArrayLike | None = None,
+    margins: tuple[float, ...] = (SIGHT_MARGIN,),
+) -> tuple[int, list[Stop]] | None:
     """Stops of the two children ahead of the parent's next station.
 
     The children stand ahead (in the direction of travel, ``direction`` = +1 or -1 along the
@@ -76,9 +122,13 @@ def formation(
         waiting_xy: (2,) where the other child stands while the far one is measured from
             the current station (it moves second), m; it must not hide the far child's
             prisms.
+        margins: how far the lines of sight pass obstacles, m, the first that any
+            placement keeps being the one kept (see :func:`sight_margins`): as if each were
+            tried in turn, in one pass over the placements.
 
     Returns:
-        The far child's stop first (it moves first), or None.
+        The index of the margin kept in ``margins``, and the stops (the far child's first:
+        it moves first); or None.
     """
     cubes = np.asarray(cubes_body, dtype=float)
     stations = [_instrument(parent_now, instrument_z), _instrument(parent_next, instrument_z)]
@@ -89,6 +139,7 @@ def formation(
     sides += [(a * lat, b * lat) for a, b in ((0, -1), (0, 1), (-1, 0), (1, 0), (-1.5, -0.3))]
     sides += [(a * lat, b * lat) for a, b in ((1.5, 0.3), (-0.3, -1.5), (0.3, 1.5))]
     sides += [(0.3, -0.3), (-0.3, 0.3), (0.15, -0.15), (-0.15, 0.15)]  # narrow corridors
+    best: tuple[int, list[Stop]] | None = None  # the first placement keeping margins[k]
     for gap in gaps:
         for spacing in (form.spacing, 0.7 * form.spacing):
             for near_side, far_side in sides:
@@ -106,11 +157,17 @@ def formation(
                     if turned is None:
                         break  # every heading hides a prism from a station
                     stops.append(Stop(xy, turned))
-                if len(stops) == len(places) and _formation_ok(
-                    space, stops, stations, cubes, instrument_range, waiting_xy
-                ):
-                    return stops
-    return None
+                if len(stops) < len(places):
+                    continue
+                for k in range(len(margins) if best is None else best[0]):
+                    if _formation_ok(
+                        space, stops, stations, cubes, instrument_range, waiting_xy, margins[k]
+                    ):
+                        if k == 0:
+                            return k, stops
+                        best = (k, stops)
+                        break
+    return best
 
 
 def _places_ok(
@@ -133,6 +190,7 @@ def _formation_ok(
     cubes: NDArray[np.float64],
     instrument_range: tuple[float, float],
     waiting_xy: ArrayLike | None = None,
+    sight_margin: float = SIGHT_MARGIN,
 ) -> bool:
     """Whether the children's stops suit both stations: see :func:`formation`. Their
     headings already keep every prism clear of its own assembly (:func:`unhidden_yaw`)."""
@@ -151,7 +209,7 @@ def _formation_ok(
             d = np.linalg.norm(pts - inst, axis=1)
             if not in_range(d, instrument_range).all():
                 return False
-            if not sight_clear(space, inst, pts, SIGHT_MARGIN).all():
+            if not sight_clear(space, inst, pts, sight_margin).all():
                 return False
             other = xy[1 - k]
             if passes_near(inst, pts, other, child_profile(floor)).any():
