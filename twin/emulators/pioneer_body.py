@@ -17,7 +17,7 @@ import threading
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from twin.scenario.geometry import inside_obstacle, inside_space
+from twin.scenario.geometry import inside_obstacles, inside_space
 from twin.scenario.schema import StoppingConfig
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.world import World
@@ -119,7 +119,7 @@ class PioneerBody:
         space = self.world.scenario.space
         if not inside_space(space, xy[None], self.radius)[0]:
             return True
-        if any(inside_obstacle(ob, xy[None], self.radius)[0] for ob in space.obstacles):
+        if inside_obstacles(space.obstacles, xy[None], self.radius).any():
             return True
         return bool(
             len(self.unreachable)

@@ -27,13 +27,7 @@ import numpy as np
 import shapely
 
 from twin.scenario.errors import ScenarioIssue
-from twin.scenario.geometry import (
-    inside_obstacle,
-    inside_space,
-    obstacles_near,
-    polyline_points,
-    rectangle_corners,
-)
+from twin.scenario.geometry import inside_obstacles, inside_space, polyline_points, rectangle
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PLATFORMS
 from twin.scenario.schema import Scenario
 from twin.scenario.visibility import station_visibility
@@ -193,14 +187,15 @@ def _free_issue(
             f"x in [{x0 + margin:.2f}, {x1 - margin:.2f}] and y in "
             f"[{y0 + margin:.2f}, {y1 - margin:.2f}] m",
         )
-    for ob in obstacles_near(sc.space.obstacles, [xy], margin):
-        if inside_obstacle(ob, [xy], margin)[0]:
-            return ScenarioIssue(
-                key,
-                f"{what} lies inside obstacle {ob.name!r} (or closer than {margin:.2f} m)",
-                list(xy),
-                "a point on free floor",
-            )
+    inside = np.flatnonzero(inside_obstacles(sc.space.obstacles, [xy], margin)[:, 0])
+    if inside.size:
+        return ScenarioIssue(
+            key,
+            f"{what} lies inside obstacle {sc.space.obstacles[inside[0]].name!r} (or closer "
+            f"than {margin:.2f} m)",
+            list(xy),
+            "a point on free floor",
+        )
     return None
 
 
@@ -295,9 +290,8 @@ def _check_cameras(sc: Scenario) -> list[ScenarioIssue]:
     obstacles = sc.space.obstacles
     xyz = np.array([cam.position for cam in sc.cameras])
     # inside[k, i]: camera i lies in obstacle k, below its top.
-    inside = np.array(
-        [inside_obstacle(ob, xyz[:, :2]) & (xyz[:, 2] < z0 + ob.size[2]) for ob in obstacles]
-    ).reshape(len(obstacles), len(sc.cameras))
+    tops = np.array([z0 + ob.size[2] for ob in obstacles]).reshape(-1, 1)
+    inside = inside_obstacles(obstacles, xyz[:, :2]) & (xyz[:, 2] < tops)
     for i, cam in enumerate(sc.cameras):
         key = f"cameras[{i}].position"
         x, y, z = cam.position
@@ -334,11 +328,9 @@ def _check_robots(sc: Scenario) -> list[ScenarioIssue]:
         if issue:
             issues.append(issue)
     robots = sc.robots.all
-    feet = [
-        rectangle_corners(r.start_xy, (r.platform.length, r.platform.width), r.start_yaw)
-        for r in robots
+    shapes = [
+        rectangle(r.start_xy, (r.platform.length, r.platform.width), r.start_yaw) for r in robots
     ]
-    shapes = [shapely.Polygon(f) for f in feet]
     for j in range(1, len(robots)):
         for i in range(j):
             if shapes[i].distance(shapes[j]) < START_GAP:
@@ -381,13 +373,11 @@ def _overlap(a: shapely.Polygon, b: shapely.Polygon) -> bool:
 
 def _check_patches(sc: Scenario) -> list[ScenarioIssue]:
     issues = []
-    obstacles = [
-        (ob, rectangle_corners(ob.center, ob.size[:2], ob.yaw)) for ob in sc.space.obstacles
-    ]
-    patches = [shapely.Polygon(rectangle_corners(p.center, p.size)) for p in sc.space.floor_patches]
+    obstacles = [(ob, rectangle(ob.center, ob.size[:2], ob.yaw)) for ob in sc.space.obstacles]
+    patches = [rectangle(p.center, p.size) for p in sc.space.floor_patches]
     for i, patch in enumerate(sc.space.floor_patches):
-        for ob, corners in obstacles:
-            if _overlap(patches[i], shapely.Polygon(corners)):
+        for ob, foot in obstacles:
+            if _overlap(patches[i], foot):
                 issues.append(
                     ScenarioIssue(
                         f"space.floor_patches[{i}].center",
@@ -472,8 +462,8 @@ def _check_route(sc: Scenario) -> list[ScenarioIssue]:
                 "a route inside the space",
             )
         )
-    for ob in sc.space.obstacles:
-        hit = inside_obstacle(ob, pts, margin)
+    hits = inside_obstacles(sc.space.obstacles, pts, margin)
+    for ob, hit in zip(sc.space.obstacles, hits, strict=True):
         for k in np.flatnonzero(hit):
             i = int(seg[k])
             if i in reported:

@@ -1,69 +1,151 @@
-"""Plan geometry of a scenario, pure numpy: obstacles as boxes, camera views on the floor,
-segment tests. Used to validate scenarios and to summarise them, without MuJoCo.
+"""Plan geometry of a scenario, without MuJoCo: obstacles' footprints as shapely polygons,
+camera views on the floor, segment tests. Used to validate scenarios, to summarise them and
+to plan the campaign.
 
 Obstacles are treated as their bounding boxes (stairs included), which is conservative
-for lines of sight.
+for lines of sight. :func:`segment_blocked` (boxes with heights) and :func:`floor_view`
+(rays cast onto the floor) stay numpy: they are 3D, and shapely's geometry is 2D. So does
+:func:`inside_space`: the walls are an axis-aligned rectangle, and its four comparisons are
+quicker than shapely's test of a point in a polygon.
 """
 
 from __future__ import annotations
 
+import functools
+import math
+import threading
+from dataclasses import dataclass
+
 import numpy as np
+import shapely
 from numpy.typing import ArrayLike, NDArray
+from shapely import affinity
 
 from calib.camera import TsaiCamera
 from twin.scenario.schema import Obstacle, Space
 
+BROADCAST_PAIRS = 256
+"""Up to this many (obstacle, point) pairs, every footprint is tested against every point;
+beyond, only the points within a footprint's bounding box are (numpy is quicker at those
+comparisons than shapely at its predicate, and the predicate needs only the few in it)."""
 
-def world2box(obstacle: Obstacle, points: ArrayLike) -> NDArray[np.float64]:
-    """(N, 2) or (N, 3) world points -> the same points in the obstacle's frame (centre of
-    the footprint, axes along its sides; z unchanged)."""
-    p = np.array(points, dtype=float, ndmin=2)
-    c, s = np.cos(obstacle.yaw), np.sin(obstacle.yaw)
-    dx = p[:, 0] - obstacle.center[0]
-    dy = p[:, 1] - obstacle.center[1]
-    out = p.copy()
-    out[:, 0] = c * dx + s * dy
-    out[:, 1] = -s * dx + c * dy
-    return out
+
+def rectangle(center: ArrayLike, size: ArrayLike, yaw: float = 0.0) -> shapely.Polygon:
+    """A rectangle of (length, width) ``size`` (m) turned by ``yaw`` (rad) about its (2,)
+    ``center`` (m), as a polygon."""
+    return _rectangle(center, 0.5 * float(size[0]), 0.5 * float(size[1]), yaw)
+
+
+def _rectangle(center: ArrayLike, hx: float, hy: float, yaw: float) -> shapely.Polygon:
+    """:func:`rectangle` of half sides ``hx``, ``hy`` (m); empty if one is negative."""
+    if hx < 0.0 or hy < 0.0:
+        return shapely.Polygon()
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y = float(center[0]), float(center[1])
+    return affinity.affine_transform(shapely.box(-hx, -hy, hx, hy), [c, -s, s, c, x, y])
+
+
+def _footprint(obstacle: Obstacle, margin: float, center: ArrayLike) -> shapely.Polygon:
+    """The obstacle's footprint grown by ``margin`` (m) on every side (a rectangle still, not
+    rounded at the corners) with its centre at (2,) ``center``, m."""
+    hx, hy = 0.5 * obstacle.size[0] + margin, 0.5 * obstacle.size[1] + margin
+    return _rectangle(center, hx, hy, obstacle.yaw)
+
+
+@dataclass(frozen=True)
+class _Footprints:
+    """Obstacles' footprints grown by a margin, about their centres: (O, 2) the centres in
+    W, m; (O,) prepared polygons and (O, 4) their bounding boxes (xmin, ymin, xmax, ymax)
+    relative to the centres, m."""
+
+    centres: NDArray[np.float64]
+    polygons: NDArray[np.object_]
+    bounds: NDArray[np.float64]
+
+
+@functools.lru_cache(maxsize=1024)
+def _footprints(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> _Footprints:
+    """The footprints of ``obstacles`` grown by ``margin`` (m) about their centres, for one
+    ``thread`` (a prepared polygon builds its index when first asked, which threads must
+    not do at once)."""
+    n = len(obstacles)
+    centres = np.array([ob.center for ob in obstacles], dtype=float).reshape(n, 2)
+    polygons = np.empty(n, dtype=object)
+    polygons[:] = [_footprint(ob, margin, (0.0, 0.0)) for ob in obstacles]
+    shapely.prepare(polygons)
+    bounds = shapely.bounds(polygons).reshape(n, 4)
+    for a in (centres, polygons, bounds):
+        a.flags.writeable = False
+    return _Footprints(centres, polygons, bounds)
+
+
+NEAR_TOLERANCE = 1e-6
+""":func:`obstacles_near` grows the points' bounding box by this much, m: far more than the
+footprints' corners are rounded by, far less than anything built."""
+
+
+@functools.lru_cache(maxsize=64)
+def _footprint_tree(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> shapely.STRtree:
+    """A search tree over the footprints of ``obstacles`` grown by ``margin`` (m), in W,
+    for one ``thread`` (see :func:`_footprints`)."""
+    return shapely.STRtree([_footprint(ob, margin, ob.center) for ob in obstacles])
+
+
+def inside_obstacles(
+    obstacles: tuple[Obstacle, ...], points_xy: ArrayLike, margin: float = 0.0
+) -> NDArray[np.bool_]:
+    """(O, N) True where (N, 2) floor points (m) lie in each of the O obstacles' footprints
+    grown by ``margin`` (m) on every side, their boundaries included.
+
+    The points are moved to each footprint's centre before shapely tests them: a side of an
+    axis-aligned footprint then lies, to the bit, where ``|point - centre| <= half side``
+    puts it (points at exactly a clearance from a wall or an obstacle are common, and a
+    footprint placed in W rounds its sides differently).
+    """
+    p = np.array(points_xy, dtype=float, ndmin=2)
+    feet = _footprints(tuple(obstacles), float(margin), threading.get_ident())
+    dx = np.ascontiguousarray(p[:, 0]) - feet.centres[:, :1]
+    dy = np.ascontiguousarray(p[:, 1]) - feet.centres[:, 1:]
+    if dx.size <= BROADCAST_PAIRS:
+        return shapely.intersects_xy(feet.polygons[:, None], dx, dy)
+    b = feet.bounds
+    inside = (dx >= b[:, :1]) & (dy >= b[:, 1:2]) & (dx <= b[:, 2:3]) & (dy <= b[:, 3:])
+    flat = inside.reshape(-1)
+    k = np.flatnonzero(flat)
+    flat[k] = shapely.intersects_xy(feet.polygons[k // len(p)], dx.flat[k], dy.flat[k])
+    return inside
 
 
 def inside_obstacle(
     obstacle: Obstacle, points_xy: ArrayLike, margin: float = 0.0
 ) -> NDArray[np.bool_]:
-    """(N,) True where (N, 2) floor points lie in the footprint grown by ``margin`` (m)."""
-    q = world2box(obstacle, points_xy)
-    hx, hy = 0.5 * obstacle.size[0] + margin, 0.5 * obstacle.size[1] + margin
-    return (np.abs(q[:, 0]) <= hx) & (np.abs(q[:, 1]) <= hy)
+    """(N,) True where (N, 2) floor points (m) lie in the footprint grown by ``margin`` (m)
+    on every side, its boundary included (see :func:`inside_obstacles`)."""
+    return inside_obstacles((obstacle,), points_xy, margin)[0]
 
 
 def obstacles_near(
     obstacles: tuple[Obstacle, ...], points_xy: ArrayLike, margin: float = 0.0
 ) -> tuple[Obstacle, ...]:
-    """The obstacles whose footprint grown by ``margin`` (m) may reach the bounding box of
-    (N, 2) floor points: the only ones that can hold one of the points within ``margin`` or
-    block a segment between two of them. A cheap test (each footprint as its enclosing
-    circle) that spares the exact ones most obstacles of a large space."""
-    if not obstacles:
-        return ()
+    """The obstacles whose footprint grown by ``margin`` (m) reaches the bounding box of
+    (N, 2) floor points (m) grown by :data:`NEAR_TOLERANCE`: the only ones that can hold one
+    of the points within ``margin`` or block a segment between two of them. One query of a
+    search tree, which spares the exact tests most obstacles of a large space."""
     p = np.array(points_xy, dtype=float, ndmin=2)
-    centre = np.array([ob.center for ob in obstacles], dtype=float)
-    radius = np.array([0.5 * np.hypot(ob.size[0], ob.size[1]) for ob in obstacles]) + margin
-    nearest = np.clip(centre, p.min(axis=0), p.max(axis=0))
-    near = np.hypot(*(centre - nearest).T) <= radius
-    return tuple(ob for ob, ok in zip(obstacles, near, strict=True) if ok)
-
-
-def rectangle_corners(center: ArrayLike, size: ArrayLike, yaw: float = 0.0) -> NDArray[np.float64]:
-    """(4, 2) corners of a rectangle of (length, width) ``size`` (m) turned by ``yaw`` (rad)
-    about its ``center``."""
-    hx, hy = 0.5 * float(size[0]), 0.5 * float(size[1])
-    local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
-    c, s = np.cos(yaw), np.sin(yaw)
-    return local @ np.array([[c, s], [-s, c]]) + np.asarray(center, dtype=float)
+    if not obstacles or not p.size:
+        return ()
+    obstacles = tuple(obstacles)
+    x, y = p[:, 0], p[:, 1]
+    tol = NEAR_TOLERANCE
+    span = shapely.box(x.min() - tol, y.min() - tol, x.max() + tol, y.max() + tol)
+    tree = _footprint_tree(obstacles, float(margin), threading.get_ident())
+    near = tree.query(span, predicate="intersects")
+    return tuple(obstacles[k] for k in np.sort(near))
 
 
 def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDArray[np.bool_]:
-    """(N,) True where (N, 2) points lie inside the walls, at least ``margin`` (m) from them."""
+    """(N,) True where (N, 2) points (m) lie inside the walls, at least ``margin`` (m) from
+    them."""
     p = np.array(points_xy, dtype=float, ndmin=2)
     (x0, x1), (y0, y1) = space.x_range, space.y_range
     return (
@@ -78,8 +160,8 @@ def _boxes(
     space: Space, obstacles: tuple[Obstacle, ...], margin: float = 0.0
 ) -> tuple[NDArray, ...]:
     """The obstacles' boxes as arrays: (O, 2) centres, (O,) cos and sin of their yaws, and
-    (O, 3) lowest and highest corners in their own frames (see :func:`world2box`), m; the
-    sides and the top moved out by ``margin``, m."""
+    (O, 3) lowest and highest corners in their own frames (origin at the footprint's centre,
+    axes along its sides, z unchanged), m; the sides and the top moved out by ``margin``, m."""
     obs = obstacles or space.obstacles
     centre = np.array([ob.center for ob in obs], dtype=float).reshape(-1, 2)
     yaw = [ob.yaw for ob in obs]
@@ -113,7 +195,7 @@ def segment_blocked(
     b = np.array(ends, dtype=float, ndmin=2)
     a, b = np.broadcast_arrays(a, b)
     centre, c, s, lo, hi = (x[:, None] for x in _boxes(space, obstacles, margin))
-    # Both ends in each obstacle's frame, (O, N) per axis (as world2box).
+    # Both ends in each obstacle's frame, (O, N) per axis.
     qa, qb = [], []
     for p, q in ((a, qa), (b, qb)):
         dx, dy = p[:, 0] - centre[..., 0], p[:, 1] - centre[..., 1]
@@ -192,17 +274,23 @@ def floor_view_corners(
 
 
 def polyline_points(waypoints: ArrayLike, spacing: float) -> tuple[NDArray, NDArray]:
-    """Points every ``spacing`` m along a polyline.
+    """Points along a polyline, each segment cut into equal parts of at most ``spacing`` m
+    (its ends included; a segment of no length adds none).
+
+    Args:
+        waypoints: (K, 2) points, m, K >= 2.
+        spacing: m, > 0.
 
     Returns:
         points: (N, 2) points, m.
-        segment: (N,) index of the segment each point lies on.
+        segment: (N,) index of the segment each point lies on (from waypoint i to i + 1).
     """
-    p = np.asarray(waypoints, dtype=float)
-    pts, seg = [], []
-    for i in range(len(p) - 1):
-        n = max(2, int(np.ceil(np.linalg.norm(p[i + 1] - p[i]) / spacing)) + 1)
-        t = np.linspace(0.0, 1.0, n)[:, None]
-        pts.append(p[i] + t * (p[i + 1] - p[i]))
-        seg.append(np.full(n, i))
-    return np.vstack(pts), np.concatenate(seg)
+    p = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+    if len(p) < 2:
+        raise ValueError(f"a polyline needs at least 2 waypoints, got {len(p)}")
+    moved = np.flatnonzero(np.any(p[1:] != p[:-1], axis=1))
+    if not moved.size:  # every waypoint the same point
+        return p[:1].copy(), np.zeros(1, dtype=np.intp)
+    lines = shapely.linestrings(np.stack([p[moved], p[moved + 1]], axis=1))
+    points, index = shapely.get_coordinates(shapely.segmentize(lines, spacing), return_index=True)
+    return points, moved[index]

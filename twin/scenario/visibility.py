@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike
 from calib.camera import TsaiCamera
 from twin.scenario.geometry import (
     floor_view,
-    inside_obstacle,
+    inside_obstacles,
     inside_space,
     obstacles_near,
     segment_blocked,
@@ -53,8 +53,7 @@ def station_visibility(
     # Only obstacles near the view and the station can hide the one from the other.
     near = obstacles_near(space.obstacles, np.vstack([floor[:, :2], station]), CHILD_CLEARANCE)
     ok = inside_space(space, floor[:, :2], CHILD_CLEARANCE)
-    for ob in near:
-        ok &= ~inside_obstacle(ob, floor[:, :2], CHILD_CLEARANCE)
+    ok &= ~inside_obstacles(near, floor[:, :2], CHILD_CLEARANCE).any(axis=0)
     floor = floor[ok]
     if len(floor) == 0:
         return 0.0

@@ -232,6 +232,15 @@ def test_robots_may_start_close_side_by_side(tmp_path):
     assert load_scenario(path).robots.children[0].start_xy == (0.6, 0.0)
 
 
+def test_a_robot_may_not_start_in_the_corner_of_an_obstacles_clearance(tmp_path):
+    # The pillar (0.6 m square at (6.5, -2.2)) grown by a child's radius, 0.29 m, is a
+    # square: (7.07, -1.63) lies within 0.29 m of the pillar along both axes, though
+    # 0.82 m from its centre, farther than its corners (0.42 m) and the radius together.
+    path = variant(tmp_path, "corner", [("start_xy = [1.5, 1.5]", "start_xy = [7.07, -1.63]")])
+    issue = _only(_error(path), "robots.children[0].start_xy")
+    assert "lies inside obstacle 'pillar'" in issue.problem
+
+
 def test_parent_must_start_at_the_world_origin(tmp_path):
     path = variant(
         tmp_path,

@@ -1,18 +1,30 @@
 """Plan geometry: the segment test for many segments and obstacles at once gives what it
 gives for each segment and each obstacle alone, and obstacles far from the segments are
-rightly left out of it."""
+rightly left out of it; the footprint tests, rectangles and polyline points that shapely
+computes agree with their definitions (in the obstacle's own frame, along each segment)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from twin.scenario import load_scenario
-from twin.scenario.geometry import inside_obstacle, obstacles_near, segment_blocked
+from twin.scenario.geometry import (
+    BROADCAST_PAIRS,
+    inside_obstacle,
+    inside_obstacles,
+    obstacles_near,
+    polyline_points,
+    rectangle,
+    segment_blocked,
+)
+from twin.scenario.schema import Obstacle
 
 HALL = Path(__file__).resolve().parents[3] / "scenarios" / "paper_hall.toml"
 
@@ -87,3 +99,180 @@ def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin
     for ob in space.obstacles:
         if ob not in near:
             assert not inside_obstacle(ob, np.vstack([a, b])[:, :2], margin).any()
+
+
+def _box_frame(obstacle: Obstacle, points: np.ndarray) -> np.ndarray:
+    """(N, 2) floor points in the obstacle's own frame (origin at its centre, axes along its
+    sides), m."""
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    d = points - np.asarray(obstacle.center)
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
+def _half(obstacle: Obstacle, margin: float) -> np.ndarray:
+    """(2,) half sides of the footprint grown by ``margin``, m."""
+    return np.array([0.5 * obstacle.size[0] + margin, 0.5 * obstacle.size[1] + margin])
+
+
+obstacles = st.builds(
+    lambda x, y, sx, sy, yaw: Obstacle(name="box", center=(x, y), size=(sx, sy, 1.0), yaw_deg=yaw),
+    st.floats(-100.0, 100.0),
+    st.floats(-100.0, 100.0),
+    st.floats(0.01, 30.0),
+    st.floats(0.01, 30.0),
+    st.floats(-360.0, 360.0),
+)
+margins = st.floats(0.0, 1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(obstacle=obstacles, margin=margins, seed=st.integers(0, 2**32 - 1))
+def test_inside_obstacle_is_the_box_in_its_own_frame(obstacle, margin, seed):
+    # Points in and around the footprint, clear of its sides by more than 1e-9 m.
+    rng = np.random.default_rng(seed)
+    half = _half(obstacle, margin)
+    local = rng.uniform(-1.5, 1.5, (300, 2)) * half
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    points = local @ np.array([[c, s], [-s, c]]) + np.asarray(obstacle.center)
+    q = np.abs(_box_frame(obstacle, points))
+    clear = np.all(np.abs(q - half) > 1e-9, axis=1)
+    inside = np.all(q <= half, axis=1)
+    found = inside_obstacle(obstacle, points, margin)
+    np.testing.assert_array_equal(found[clear], inside[clear])
+    assert 0 < inside[clear].sum() < clear.sum()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    obstacle=obstacles,
+    margin=margins,
+    side=st.sampled_from([(1, 0), (-1, 0), (0, 1), (0, -1)]),
+    along=st.floats(-0.99, 0.99),
+)
+def test_an_axis_aligned_footprint_holds_its_sides_to_the_bit(obstacle, margin, side, along):
+    # An axis-aligned footprint's sides lie where |point - centre| <= half side puts them,
+    # exactly: robots are placed at exactly a clearance from a side, and a side rounded by
+    # one bit turns such a place from blocked to free.
+    ob = obstacle.model_copy(update={"yaw_deg": 0.0})
+    half = _half(ob, margin)
+    k = 0 if side[0] else 1  # the axis across the side
+    edge = np.array(ob.center)
+    edge[1 - k] += along * half[1 - k]
+    edge[k] += side[k] * half[k]
+    # The side itself, and the floats next to it either way.
+    points = np.repeat(edge[None], 3, axis=0)
+    points[1, k] = np.nextafter(edge[k], -np.inf)
+    points[2, k] = np.nextafter(edge[k], np.inf)
+    q = np.abs(points - np.asarray(ob.center))
+    expected = np.all(q <= half, axis=1)
+    np.testing.assert_array_equal(inside_obstacle(ob, points, margin), expected)
+    assert expected.sum() >= 1
+
+
+def test_a_place_at_exactly_a_clearance_from_the_island_is_blocked(space):
+    # The island's south side is at y = 0.7 m: a place at y = 0.35 m is 0.35 m from it,
+    # which the formation's clearance of 0.35 m counts as blocked (a footprint grown in W,
+    # 2.0 - (1.3 + 0.35), would round its side to just above 0.35).
+    island = next(ob for ob in space.obstacles if ob.name == "island")
+    assert inside_obstacle(island, [[26.0, 0.35]], 0.35)[0]
+    assert not inside_obstacle(island, [[26.0, np.nextafter(0.35, 0.0)]], 0.35)[0]
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    footprints=st.lists(obstacles, min_size=1, max_size=6),
+    margin=margins,
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_many_points_at_once_are_each_point_alone(footprints, margin, seed):
+    # Beyond BROADCAST_PAIRS pairs only the points within a footprint's bounding box are
+    # handed to shapely: the answer is the one each point gets alone, on the sides too.
+    rng = np.random.default_rng(seed)
+    obs = tuple(ob.model_copy(update={"yaw_deg": 0.0}) for ob in footprints[::2])
+    obs += tuple(footprints[1::2])
+    points = rng.uniform(-110.0, 110.0, (BROADCAST_PAIRS + 50, 2))
+    centres = np.array([ob.center for ob in obs])
+    points[::2] = centres[rng.integers(len(obs), size=len(points[::2]))]
+    points[::2] += rng.uniform(-15.0, 15.0, points[::2].shape)
+    corners = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1], [1, 0], [0, 1], [-1, 0], [0, -1]])
+    sides = [np.asarray(ob.center) + corners * _half(ob, margin) for ob in obs]
+    points = np.vstack([points, *sides])
+    together = inside_obstacles(obs, points, margin)
+    alone = np.column_stack([inside_obstacles(obs, p[None], margin)[:, 0] for p in points])
+    assert together.shape == (len(obs), len(points))
+    np.testing.assert_array_equal(together, alone)
+
+
+def test_no_obstacles_and_no_points():
+    post = Obstacle(name="post", center=(0.0, 0.0), size=(0.1, 0.1, 1.0))
+    assert inside_obstacles((), [[0.0, 0.0]]).shape == (0, 1)
+    assert inside_obstacles((post,), np.zeros((0, 2))).shape == (1, 0)
+    assert obstacles_near((post,), np.zeros((0, 2))) == ()
+    assert obstacles_near((), [[0.0, 0.0]]) == ()
+
+
+def test_a_post_is_near_a_point_in_the_corner_of_its_clearance():
+    # The clearance grows a footprint into a larger rectangle, whose corners reach farther
+    # than the footprint's enclosing circle grown by the clearance.
+    post = Obstacle(name="post", center=(0.0, 0.0), size=(0.01, 0.01, 2.0))
+    corner = [[0.28, 0.28]]  # 0.40 m from the post's centre, within 0.29 m on each axis
+    assert inside_obstacle(post, corner, 0.29)[0]
+    assert obstacles_near((post,), corner, 0.29) == (post,)
+    assert obstacles_near((post,), [[0.31, 0.0]], 0.29) == ()
+
+
+@settings(max_examples=100, deadline=None)
+@given(obstacle=obstacles)
+def test_a_rectangle_has_the_corners_of_the_box(obstacle):
+    foot = rectangle(obstacle.center, obstacle.size[:2], obstacle.yaw)
+    hx, hy = 0.5 * obstacle.size[0], 0.5 * obstacle.size[1]
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
+    corners = local @ np.array([[c, s], [-s, c]]) + np.asarray(obstacle.center)
+    found = shapely.get_coordinates(foot)[:-1]
+    # The same four corners, whatever the ring's first one.
+    for corner in corners:
+        assert np.min(np.linalg.norm(found - corner, axis=1)) < 1e-12 * (1.0 + hx + hy + 100.0)
+    assert foot.is_valid
+    assert foot.area == pytest.approx(obstacle.size[0] * obstacle.size[1], rel=1e-12)
+
+
+waypoint = st.tuples(st.floats(-50.0, 50.0), st.floats(-50.0, 50.0))
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    waypoints=st.lists(waypoint, min_size=2, max_size=8),
+    spacing=st.floats(0.01, 5.0),
+)
+def test_polyline_points_cut_each_segment_into_equal_parts(waypoints, spacing):
+    p = np.array(waypoints)
+    points, segment = polyline_points(p, spacing)
+    assert points.shape == (len(segment), 2)
+    assert np.all(np.diff(segment) >= 0)
+    if np.all(p == p[0]):
+        np.testing.assert_array_equal(points, p[:1])
+        return
+    for i in range(len(p) - 1):
+        on = points[segment == i]
+        if np.all(p[i + 1] == p[i]):  # no part of its own: its point is a neighbour's end
+            assert len(on) == 0
+            continue
+        length = float(np.linalg.norm(p[i + 1] - p[i]))
+        parts = length / spacing
+        # The straightforward definition: ceil(length / spacing) equal parts.
+        if abs(parts - round(parts)) > 1e-9:
+            assert len(on) == math.ceil(parts) + 1
+        expected = p[i] + np.linspace(0.0, 1.0, len(on))[:, None] * (p[i + 1] - p[i])
+        rounding = 1e-12 * (1.0 + float(np.abs(p).max()))
+        np.testing.assert_allclose(on, expected, rtol=0.0, atol=rounding)
+        np.testing.assert_array_equal(on[[0, -1]], p[[i, i + 1]])
+        assert np.all(np.linalg.norm(np.diff(on, axis=0), axis=1) <= spacing + rounding)
+
+
+def test_polyline_points_of_a_polyline_that_stays_put():
+    points, segment = polyline_points([[1.0, 2.0], [1.0, 2.0]], 0.1)
+    np.testing.assert_array_equal(points, [[1.0, 2.0]])
+    np.testing.assert_array_equal(segment, [0])
+    with pytest.raises(ValueError, match="at least 2 waypoints"):
+        polyline_points([[1.0, 2.0]], 0.1)

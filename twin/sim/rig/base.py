@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike
 from calib.rotation import compose_planar, invert_planar, wrap_angle
 from twin.hal.devices import Clock, MobileBase
 from twin.hal.readings import DriveResult, DriveStatus, OdometryReading
-from twin.scenario.geometry import inside_obstacle, inside_space
+from twin.scenario.geometry import inside_obstacles, inside_space
 from twin.scenario.schema import StoppingConfig
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.world import World
@@ -71,9 +71,9 @@ class _SimBase(MobileBase):
         space = self.world.scenario.space
         if not inside_space(space, xy[None], self.radius)[0]:
             return "the goal is outside the space"
-        for ob in space.obstacles:
-            if inside_obstacle(ob, xy[None], self.radius)[0]:
-                return f"the goal is inside obstacle {ob.name!r}"
+        inside = np.flatnonzero(inside_obstacles(space.obstacles, xy[None], self.radius)[:, 0])
+        if inside.size:
+            return f"the goal is inside obstacle {space.obstacles[inside[0]].name!r}"
         return ""
 
     @staticmethod
