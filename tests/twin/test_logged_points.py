@@ -19,7 +19,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_a_calibrations_covariance_comes_from_its_own_points(tmp_path):
-    run_scenario(ROOT / "scenarios" / "smoke.toml", tmp_path, fidelity="geometric", report=False)
+    smoke = ROOT / "scenarios" / "smoke.toml"  # the paper's stops: 4 LEDs each
+    run_scenario(smoke, tmp_path, fidelity="geometric", report=False, strategy="paper")
     messages = list(read_log(tmp_path / "log.mcap").messages)
     record = next(m.data for m in messages if m.topic == CALIBRATION)
     points = visit_points(gathered(messages), "cam1", 1, record["points"])

@@ -4,8 +4,9 @@ camera is calibrated with Tsai's model.
 
 A stop that gives no point (no heading shows the prisms, the child cannot get there, its
 prisms are not measured, not every LED is found) is counted as a failure and replaced by
-the plan's next spare stop. With ``campaign.data_stops = "accuracy"`` a stop where some
-LEDs are found gives a point with those (the missing LEDs' failures still counted).
+the plan's next spare stop. Where the plan says so (:attr:`twin.campaign.strategy.StopPlan.
+partial`: stops chosen for accuracy) a stop where some LEDs are found gives a point with
+those (the missing LEDs' failures still counted).
 """
 
 from __future__ import annotations
@@ -74,7 +75,7 @@ class DataCollection:
             if planned is None:
                 break
             self.journal.show(robot=child, camera=camera, points=taken)
-            point = self._point_at(planned, child, camera, dataset, visit)
+            point = self._point_at(planned, child, camera, dataset, visit, plan.partial)
             if point is None:
                 plan.replace()
                 continue
@@ -89,10 +90,16 @@ class DataCollection:
         return pts[:n], pix[:n], points
 
     def _point_at(
-        self, planned: PlannedStop, child: str, camera: str, dataset: str, visit: int
+        self,
+        planned: PlannedStop,
+        child: str,
+        camera: str,
+        dataset: str,
+        visit: int,
+        partial: bool,
     ) -> DataPoint | None:
-        """The child at one stop: its LEDs in W and in the image, or None (the failure
-        recorded)."""
+        """The child at one stop: its LEDs in W and in the image (those found, where
+        ``partial``), or None (the failure recorded)."""
         if planned.yaw is None:
             self.journal.failure("prisms_hidden", "every heading hides a prism", child, camera)
             return None
@@ -107,7 +114,6 @@ class DataCollection:
             self.journal.failure("point_skipped", message, child, camera)
             return None
         seen = self.rig.led_sensors[camera].observe(child, self.sequence)
-        partial = self.settings.data_stops == "accuracy"
         if not seen.complete:
             kinds = sorted({f for f in seen.failures if f is not None})
             for kind in kinds:

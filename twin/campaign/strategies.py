@@ -5,14 +5,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from twin.campaign.paper_strategy import PaperStrategy
+from twin.campaign.paper_strategy import PaperStrategy, PlannedStrategy
 from twin.campaign.strategy import Strategy
 from twin.scenario.schema import Scenario
 
-STRATEGIES: dict[str, Callable[[], Strategy]] = {PaperStrategy.name: PaperStrategy}
+STRATEGIES: dict[str, Callable[[], Strategy]] = {
+    PaperStrategy.name: PaperStrategy,
+    PlannedStrategy.name: PlannedStrategy,
+}
 """Each strategy's maker, by name."""
 
-DEFAULT_STRATEGY = PaperStrategy.name
+DEFAULT_STRATEGY = PlannedStrategy.name
 """The strategy of a scenario that names none."""
 
 

@@ -217,6 +217,8 @@ class StopPlan:
         spares: stops that replace failed ones, in order.
         heading: the heading at a stop at which all its prisms show (None: none does);
             worked out when the stop comes (default: the stop's own heading).
+        partial: a stop where the camera finds only some of the LEDs gives a point with
+            those (the stops were chosen where some LEDs show); otherwise it gives none.
     """
 
     def __init__(
@@ -225,8 +227,10 @@ class StopPlan:
         planned: Sequence[Stop],
         spares: Sequence[Stop] = (),
         heading: Callable[[Stop], float | None] | None = None,
+        partial: bool = False,
     ) -> None:
         self.child = child
+        self.partial = partial
         self._planned = list(planned)
         self._spares = list(spares)
         self._heading = heading or (lambda stop: stop.yaw)

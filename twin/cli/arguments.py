@@ -59,8 +59,9 @@ def add_strategy(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--strategy",
         choices=sorted(STRATEGIES),
-        help="the campaign's decisions (visits, legs, data stops): paper, the paper's "
-        "(default: the scenario's campaign.strategy, itself paper by default)",
+        help="the campaign's decisions (visits, legs, data stops): planned, the paper's "
+        "visits and legs with each camera's data stops chosen for accuracy; paper, the "
+        "paper's own (default: the scenario's campaign.strategy, itself planned by default)",
     )
 
 

@@ -55,9 +55,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--data-stops",
         choices=("all_leds", "accuracy"),
         default="all_leds",
-        help="where the child stops for a camera's data: all_leds (where all its LEDs show, "
-        "the default) or accuracy (where some show, chosen to lower the camera's predicted "
-        "error)",
+        help="the scenario's campaign.data_stops: all_leds (the default; the default planned "
+        "strategy chooses the stops for accuracy all the same, the paper strategy where all "
+        "the child's LEDs show) or accuracy (stops chosen to lower the camera's predicted "
+        "error under any strategy)",
     )
     p.add_argument("--name", help="the scenario's name (default: the output file's stem)")
     p.add_argument(

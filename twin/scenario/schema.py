@@ -749,8 +749,9 @@ class CampaignSettings(Frozen):
         pixel_size_mm: the sensor's pixel pitch, for kappa1 in the paper's 1/mm^2: 0.5 um
             (the smallest pixels made are about 0.56 um) to 0.1 mm.
         strategy: the campaign's decisions (visits, legs, data stops) by name:
-            ``paper`` (the paper's; the default for now). ``twin run --strategy`` overrides
-            it.
+            ``planned`` (the default: the paper's visits and legs, each camera's data stops
+            chosen for accuracy) or ``paper`` (the paper's, its stops too). ``twin run
+            --strategy`` overrides it.
         child_creep_m: how far the campaign allows a standing child to move on each
             horizontal axis while the parent drives, m (standard deviation): CPS adds it to
             the children's positions before each of the parent's fixes, in its estimate,
@@ -774,7 +775,7 @@ class CampaignSettings(Frozen):
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
     pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
-    strategy: Name = "paper"
+    strategy: Name = "planned"
     child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
     data_stops: Literal["all_leds", "accuracy"] = "all_leds"
 

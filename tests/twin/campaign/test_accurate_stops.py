@@ -25,11 +25,10 @@ SPEC = TotalStationSpec()
 RANGE = (SPEC.range_min, SPEC.range_max)
 
 
-def _with(sc, data_stops: str):
-    """The scenario with ``campaign.data_stops`` set."""
-    return sc.model_copy(
-        update={"campaign": sc.campaign.model_copy(update={"data_stops": data_stops})}
-    )
+def _with(sc, data_stops: str, strategy: str = "paper"):
+    """The scenario with ``campaign.data_stops`` and ``campaign.strategy`` set."""
+    settings = {"data_stops": data_stops, "strategy": strategy}
+    return sc.model_copy(update={"campaign": sc.campaign.model_copy(update=settings)})
 
 
 def _predicted_std_mm(sc) -> list[tuple[float, float, float]]:
@@ -183,3 +182,25 @@ def test_points_variance_with_stops_of_different_led_counts():
         TsaiCameras.from_cameras([cam]), pts[None], joint[None, None]
     )
     np.testing.assert_allclose(got, np.trace(want[0]), rtol=1e-9)
+
+
+def test_the_planned_strategy_is_the_papers_with_stops_for_accuracy(smoke, tmp_path):
+    from twin.campaign import DEFAULT_STRATEGY, strategy_named
+    from twin.campaign.paper_strategy import PlannedStrategy
+    from twin.runner import run_scenario
+
+    assert DEFAULT_STRATEGY == "planned"
+    assert isinstance(strategy_named("planned"), PlannedStrategy)
+    assert smoke.campaign.strategy == "planned"  # the scenario names none
+    runs = [
+        run_scenario(sc, tmp_path / name, fidelity="geometric", seed=1, report=False)
+        for name, sc in (
+            ("planned", smoke),
+            ("paper_accuracy", _with(smoke, "accuracy", "paper")),
+            ("paper", _with(smoke, "all_leds", "paper")),
+        )
+    ]
+    planned, paper_accuracy, paper = (r["calibrations"][0] for r in runs)
+    assert planned["truth"] == paper_accuracy["truth"]
+    assert planned["data_points_xy"] == paper_accuracy["data_points_xy"]
+    assert planned["data_points_xy"] != paper["data_points_xy"]

@@ -247,7 +247,7 @@ def test_a_trial_that_raises_is_named_and_the_finished_ones_are_kept(tmp_path, m
     said = " ".join(capsys.readouterr().out.split())
     assert f"trial 1 of 'all' (seed {trial_seed(5, 1)}) failed: ValueError: the children" in said
     # The command that runs it alone names the scenario's file and the strategy.
-    alone = f"twin run {SMOKE} --fidelity geometric --seed {trial_seed(5, 1)} --strategy paper"
+    alone = f"twin run {SMOKE} --fidelity geometric --seed {trial_seed(5, 1)} --strategy planned"
     assert alone in said
     assert "--resume continues" in said
     # Trial 0 ran before the failure and stays in the table for --resume.
