@@ -247,9 +247,10 @@ class Travel:
         if child not in self.placed:
             return None
         base = self.rig.children[child]
-        stand, _ = self.cps.child_position(child)
+        stand = self.cps.child_position(child)[0][:2]
         self.journal.event("child_drove_again", "back to its last stand and again", child)
-        if not self._drive(base, stand[:2]):
+        heading = math.atan2(*(stand - self.child_pose(child)[:2])[::-1])
+        if not self._drive(base, stand, self._showing(stand, heading)):
             return None
         seen = self.measure(child)
         if seen is None:
