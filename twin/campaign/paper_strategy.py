@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
 from twin.campaign.plan.accurate_stops import choose_stops, partial_view_stops
-from twin.campaign.plan.formation import formation_tried, sight_margins
+from twin.campaign.plan.formation import formation, sight_margins
 from twin.campaign.plan.legs import leg_goals
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
@@ -142,7 +142,7 @@ class PaperStrategy(Strategy):
             while True:
                 s_next = ends[0]
                 if s_next not in legs:
-                    legs[s_next] = self._leg_tried(
+                    legs[s_next] = self.leg_between(
                         view, goal, s_now, s_next, len(ends) == 1, direction, form, margins
                     )
                 found = legs[s_next]
@@ -178,34 +178,20 @@ class PaperStrategy(Strategy):
         direction: float,
         form: FormationSettings,
         margins: tuple[float, ...] | None = None,
-    ) -> Leg | None:
+    ) -> tuple[int, Leg] | None:
         """The leg from arc length ``s_now`` to ``s_next`` (the goal's station if
         ``arrives``) with the children in formation ``form``, or None where they have no
-        room. ``margins``: the formation's sight margins to try in turn, m (default
+        room; with the index in ``margins`` of the sight margin its formation keeps
+        (``margins``: tried in turn, m; default
         :func:`twin.campaign.plan.formation.sight_margins` of the parent's estimate).
         Changes nothing: the caller that takes the leg sets ``_reached_s``."""
         if margins is None:
             margins = sight_margins(view.parent.horizontal_std)
-        found = self._leg_tried(view, goal, s_now, s_next, arrives, direction, form, margins)
-        return None if found is None else found[1]
-
-    def _leg_tried(
-        self,
-        view: CampaignView,
-        goal: Visit | Return,
-        s_now: float,
-        s_next: float,
-        arrives: bool,
-        direction: float,
-        form: FormationSettings,
-        margins: tuple[float, ...],
-    ) -> tuple[int, Leg] | None:
-        """:meth:`leg_between`, with the index in ``margins`` of the margin kept."""
         path = self.path
         parent_xy = view.parent.translation[:2]
         next_xy = goal.station if arrives else path.at(s_next)
         order = self._children_in_order(view, direction)
-        found = formation_tried(
+        found = formation(
             view.scenario.space,
             self.marker.cubes_body,
             view.instrument_range,

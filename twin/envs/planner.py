@@ -131,7 +131,8 @@ class LegChoices(PaperStrategy):
             for leg_ends in ends:
                 key = (leg_ends[0], len(leg_ends) == 1)
                 if key not in planned:
-                    planned[key] = self.leg_between(view, goal, s_now, *key, direction, form)
+                    found = self.leg_between(view, goal, s_now, *key, direction, form)
+                    planned[key] = None if found is None else found[1]
                 leg = planned[key]
                 out.append(None if leg is None else (leg, leg_ends[0]))
         return out

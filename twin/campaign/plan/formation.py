@@ -79,29 +79,6 @@ def formation(
     form: FormationSettings,
     instrument_z: float,
     waiting_xy: ArrayLike | None = None,
-    sight_margin: float = SIGHT_MARGIN,
-) -> list[Stop] | None:
-    """Stops of the two children ahead of the parent's next station (see
-    :func:`formation_tried`, with one sight margin), or None."""
-    found = formation_tried(
-        space, cubes_body, instrument_range, path, s_next, parent_now, parent_next,
-        direction, form, instrument_z, waiting_xy, (sight_margin,),
-    )  # fmt: skip
-    return None if found is None else found[1]
-
-
-def formation_tried(
-    space: Space,
-    cubes_body: ArrayLike,
-    instrument_range: tuple[float, float],
-    path: RoutePath,
-    s_next: float,
-    parent_now: ArrayLike,
-    parent_next: ArrayLike,
-    direction: float,
-    form: FormationSettings,
-    instrument_z: float,
-    waiting_xy: ArrayLike | None = None,
     margins: tuple[float, ...] = (SIGHT_MARGIN,),
 ) -> tuple[int, list[Stop]] | None:
     """Stops of the two children ahead of the parent's next station.

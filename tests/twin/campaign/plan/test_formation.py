@@ -30,15 +30,17 @@ def test_the_child_that_waits_does_not_hide_the_one_measured_first(hall):
     z, floor = 0.0, hall.space.floor_z
     cubes = np.asarray(hall.marker.cubes, dtype=float)
     form = hall.campaign.formation
-    free_stops = formation(hall.space, cubes, RANGE, path, s_next, here, there, 1.0, form, z)
-    assert free_stops is not None
+    found = formation(hall.space, cubes, RANGE, path, s_next, here, there, 1.0, form, z)
+    assert found is not None
+    free_stops = found[1]
     # A child waiting right on the line of sight to where the far child would stop.
     far = free_stops[0]
     waiting = here + 0.3 * (np.asarray(far.xy) - here)
-    stops = formation(
+    found = formation(
         hall.space, cubes, RANGE, path, s_next, here, there, 1.0, form, z, waiting_xy=waiting
     )
-    assert stops is not None
+    assert found is not None
+    stops = found[1]
     assert not np.allclose(stops[0].xy, far.xy)
     inst = np.array([here[0], here[1], z])
     prisms = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]

@@ -17,7 +17,6 @@ from twin.campaign.plan.formation import (
     SIGHT_MARGIN,
     UNCERTAINTY_SIGMAS,
     formation,
-    formation_tried,
     sight_margins,
 )
 from twin.campaign.plan.legs import leg_goals
@@ -82,12 +81,13 @@ def test_a_formation_keeps_its_lines_of_sight_clear_by_its_margin(corner, margin
     for s in np.arange(10.0, 24.0, 1.0):
         for length in (form.step, 0.5 * form.step):
             here, there = path.at(s), path.at(s + length)
-            stops = formation(
+            kept = formation(
                 corner.space, cubes, RANGE, path, s + length, here, there, 1.0, form, 0.0,
-                sight_margin=margin,
+                margins=(margin,),
             )  # fmt: skip
-            if stops is None:
+            if kept is None:
                 continue
+            stops = kept[1]
             found += 1
             stations = [np.array([*here, 0.0]), np.array([*there, 0.0])]
             assert _clear_by(corner, stops, stations, margin)
@@ -177,7 +177,7 @@ def test_an_uncertain_group_turns_the_corner_in_shorter_legs_clear_by_its_uncert
     margin = UNCERTAINTY_SIGMAS * std
     full = formation(
         corner.space, cubes, RANGE, path, s_full, here, path.at(s_full), 1.0, form, 0.0,
-        sight_margin=margin,
+        margins=(margin,),
     )  # fmt: skip
     assert full is None  # the full leg has no room for the margin: the case is the one meant
     leg = _first_leg(corner, std)
@@ -205,12 +205,12 @@ def test_one_pass_over_the_placements_is_trying_each_margin_in_turn(corner):
         for length in (form.step, 0.5 * form.step, 0.25 * form.step):
             args = (corner.space, cubes, RANGE, path, s + length, path.at(s))
             args += (path.at(s + length), 1.0, form, 0.0)
-            one_pass = formation_tried(*args, None, tries)
+            one_pass = formation(*args, None, tries)
             in_turn = None
             for k, margin in enumerate(tries):
-                stops = formation(*args, sight_margin=margin)
-                if stops is not None:
-                    in_turn = (k, stops)
+                alone = formation(*args, None, (margin,))
+                if alone is not None:
+                    in_turn = (k, alone[1])
                     break
             if in_turn is None:
                 assert one_pass is None
