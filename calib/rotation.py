@@ -60,9 +60,11 @@ def rot_z(yaw: ArrayLike) -> NDArray[np.float64]:
     c, s = np.cos(a), np.sin(a)
     if a.ndim == 0:
         return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    zero, one = np.zeros_like(c), np.ones_like(c)
-    rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    out = np.zeros((*a.shape, 3, 3))
+    out[..., 0, 0], out[..., 0, 1] = c, -s
+    out[..., 1, 0], out[..., 1, 1] = s, c
+    out[..., 2, 2] = 1.0
+    return out
 
 
 def rot_z_derivative(yaw: ArrayLike) -> NDArray[np.float64]:
@@ -71,9 +73,10 @@ def rot_z_derivative(yaw: ArrayLike) -> NDArray[np.float64]:
     c, s = np.cos(a), np.sin(a)
     if a.ndim == 0:
         return np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
-    zero = np.zeros_like(c)
-    rows = [[-s, -c, zero], [c, -s, zero], [zero, zero, zero]]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    out = np.zeros((*a.shape, 3, 3))
+    out[..., 0, 0], out[..., 0, 1] = -s, -c
+    out[..., 1, 0], out[..., 1, 1] = c, -s
+    return out
 
 
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64] | float:
