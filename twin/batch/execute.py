@@ -281,6 +281,9 @@ class BatchRun:
             the campaign's own as array code).
         record_network: keep what each trial measured for its global adjustment
             (:attr:`network`, :mod:`twin.batch.network`).
+
+    Attributes:
+        executed: the steps executed so far.
     """
 
     def __init__(
@@ -343,6 +346,7 @@ class BatchRun:
         self.distance = np.zeros(t)
         self.failures = np.zeros(t, dtype=np.int64)
         self.visits: dict[tuple[str, int], VisitOutcome] = {}
+        self.executed = 0
         self._record_fix(self.robots[plan.parent].nominal.instrument)
 
     # -- the steps -------------------------------------------------------------------------
@@ -354,6 +358,7 @@ class BatchRun:
 
     def step(self, step: object) -> None:
         """Execute one step of the plan for every trial."""
+        self.executed += 1
         if isinstance(step, Drive):
             self._drive(step)
         elif isinstance(step, Place):

@@ -41,14 +41,15 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from twin.batch.execute import BatchRun, VisitOutcome, transfer_rms
+from twin.batch.execute import BatchRun
 from twin.batch.plan import BatchPlan, Calibrate, Step
 from twin.envs.free_space import FreeSpace
+from twin.envs.knowledge import BatchKnowledge, Knowledge
 from twin.envs.moves import MoveLayout
 from twin.envs.observation import (
     CameraState,
-    StationState,
-    build_observation,
+    Stations,
+    build_observations,
     observation_space,
 )
 from twin.envs.planner import CampaignPlanner
@@ -77,6 +78,7 @@ _EPISODE_STATE = frozenset(
         "_predicted",
         "_steps",
         "_row",
+        "_known",
     }
 )
 """What pickling leaves out and rebuilds by replaying the episode's moves."""
@@ -173,6 +175,7 @@ class CpsCampaignEnv(gym.Env):
         self._steps: list[Step] = []
         self._fallbacks = 0
         self._row = 0  # the episode's trial in self.batch
+        self._known: BatchKnowledge | None = None  # what self.batch knows
 
     # -- episodes ---------------------------------------------------------------------------------
     def reset(
@@ -226,15 +229,37 @@ class CpsCampaignEnv(gym.Env):
         self._episode = {"scenario": scenario, "trial_seed": trial_seed, "moves": []}
         return self.planner.take_pending()
 
-    def _attach(self, batch: BatchRun, row: int, steps: tuple[Step, ...]) -> None:
-        """The episode's trial is row ``row`` of ``batch``, which has executed ``steps``."""
+    def _attach(
+        self,
+        batch: BatchRun,
+        row: int,
+        steps: tuple[Step, ...],
+        known: BatchKnowledge | None = None,
+    ) -> None:
+        """The episode's trial is row ``row`` of ``batch``, which has executed ``steps``
+        (``known``: the batch's knowledge, shared with the other episodes of the batch)."""
         assert self.planner is not None
-        self.batch, self._row = batch, row
+        self._join(batch, row, known)
         self._steps = list(steps)
         self._time = self.planner.time
         self._distance = 0.0
         self._predicted = self._mean_predicted_mm()
         self._fallbacks = 0
+
+    def _join(self, batch: BatchRun, row: int, known: BatchKnowledge | None = None) -> None:
+        """The episode's trial is now row ``row`` of ``batch``."""
+        assert self.scenario is not None
+        if known is None:
+            known = self.knowledge_of(batch)
+        self.batch, self._row, self._known = batch, row, known
+
+    def knowledge_of(self, batch: BatchRun) -> BatchKnowledge:
+        """What a batch of the episode's campaign knows (see :mod:`twin.envs.knowledge`)."""
+        assert self.scenario is not None
+        cameras = self.scenario.cameras
+        return BatchKnowledge(
+            batch, tuple(c.name for c in cameras), np.array([c.position for c in cameras])
+        )
 
     def step(
         self, action: int
@@ -272,12 +297,21 @@ class CpsCampaignEnv(gym.Env):
         self, action: int, reward: float, fallback: dict[str, Any] | None
     ) -> tuple[dict[str, NDArray[np.float64]], float, bool, bool, dict[str, Any]]:
         """What ``step`` returns after the move ``action``."""
+        reward, terminated, info = self._finish(action, reward, fallback)
+        return self._observation(), reward, terminated, False, info
+
+    def _finish(
+        self, action: int, reward: float, fallback: dict[str, Any] | None
+    ) -> tuple[float, bool, dict[str, Any]]:
+        """The reward, whether the campaign is over, and the info after the move
+        ``action`` (the observation is built apart: a vector builds its episodes' at
+        once)."""
         assert self.planner is not None
         info = self._info()
         info["move"] = self.layout.describe(action)
         if fallback is not None:
             info["fallback"] = fallback
-        return self._observation(), reward, self.planner.done, False, info
+        return reward, self.planner.done, info
 
     def _apply(self, action: int) -> float:
         """Take an allowed move and execute its steps; its reward."""
@@ -320,6 +354,7 @@ class CpsCampaignEnv(gym.Env):
         episode, fallbacks = state.pop("_episode"), state.pop("_fallbacks")
         self.__dict__.update(state)
         self.planner, self.batch, self._free, self._free_for = None, None, None, None
+        self._known = None
         if episode:
             self._start_episode(episode["scenario"], episode["trial_seed"])
             for action in episode["moves"]:
@@ -359,97 +394,51 @@ class CpsCampaignEnv(gym.Env):
     def _close_episode(self) -> None:
         if self.planner is not None:
             self.planner.close()
-        self.planner, self.batch = None, None
+        self.planner, self.batch, self._known = None, None, None
 
     # -- what the campaign knows -------------------------------------------------------------------
-    def _parent_estimate(self) -> tuple[NDArray[np.float64], float, NDArray[np.float64]]:
-        """The trial's parent estimate: (3,) instrument centre m, yaw rad, (4, 4) covariance."""
-        assert self.batch is not None
-        parent = self.batch.cps.parent
-        return (
-            parent.translation[self._row],
-            float(parent.yaw[self._row]),
-            parent.covariance[self._row],
-        )
-
-    def _delivered(self) -> dict[str, VisitOutcome]:
-        """Each camera's calibration the campaign delivers: of its visits that calibrated
-        it, the one with the lowest predicted world-frame error."""
-        assert self.batch is not None
-        best: dict[str, tuple[float, VisitOutcome]] = {}
-        for (camera, _), outcome in self.batch.visits.items():
-            if not bool(outcome.calibrated[self._row]):
-                continue
-            predicted = math.hypot(
-                outcome.predicted_transfer[self._row], outcome.predicted_calibration[self._row]
-            )
-            if camera not in best or predicted < best[camera][0]:
-                best[camera] = (predicted, outcome)
-        return {camera: outcome for camera, (_, outcome) in best.items()}
+    def _now(self) -> Knowledge:
+        """What the episode's batch knows now (every trial of it)."""
+        if self._known is None:
+            raise RuntimeError("call reset() first")
+        return self._known.now()
 
     def camera_states(self) -> list[CameraState]:
         """What the campaign knows of each camera, in the site's order."""
-        assert self.batch is not None
         assert self.planner is not None
         assert self.scenario is not None
-        delivered = self._delivered()
-        parent = self.batch.cps.parent
+        known, row = self._now(), self._row
         here = self.planner.here_camera()
-        out = []
-        for cam in self.scenario.cameras:
-            position = np.asarray(cam.position, dtype=float)
-            outcome = delivered.get(cam.name)
-            transfer = 0.0 if outcome is None else float(outcome.predicted_transfer[self._row])
-            own = 0.0 if outcome is None else float(outcome.predicted_calibration[self._row])
-            out.append(
-                CameraState(
-                    outcome is not None,
-                    math.hypot(transfer, own),
-                    own,
-                    float(transfer_rms(parent, position[None])[self._row]),
-                    position,
-                    here == cam.name,
-                )
+        return [
+            CameraState(
+                bool(known.calibrated[row, j]),
+                float(known.predicted[row, j]),
+                float(known.calibration[row, j]),
+                float(known.transfer_now[row, j]),
+                np.asarray(cam.position, dtype=float),
+                here == cam.name,
             )
-        return out
-
-    def station_states(self) -> list[StationState]:
-        """What the campaign knows of each calibration station, in the order of
-        ``go_to``."""
-        assert self.planner is not None
-        assert self.scenario is not None
-        planner = self.planner
-        names = [c.name for c in self.scenario.cameras]
-        calibrated = self._delivered()
-        here = planner.here()
-        out = []
-        for name in planner.order:
-            station = planner.stations[name]
-            assert station.camera is not None
-            out.append(
-                StationState(
-                    names.index(station.camera),
-                    station.xy,
-                    planner.route_distance(station),
-                    station.camera in calibrated,
-                    here == name,
-                )
-            )
-        return out
+            for j, cam in enumerate(self.scenario.cameras)
+        ]
 
     def _mean_predicted_mm(self) -> float:
-        states = self.camera_states()
-        errors = [
-            1e3 * s.predicted_error if s.calibrated else self.uncalibrated_error_mm for s in states
-        ]
-        return float(np.mean(errors)) if errors else 0.0
+        known, row = self._now(), self._row
+        if not known.calibrated.shape[1]:
+            return 0.0
+        errors = np.where(
+            known.calibrated[row], 1e3 * known.predicted[row], self.uncalibrated_error_mm
+        )
+        return float(np.mean(errors))
 
     def camera_errors_mm(self) -> dict[str, float]:
         """The true world-frame position error of each camera calibrated so far (the
         calibration delivered: of its visits, the one with the lowest predicted error), mm."""
+        known, row = self._now(), self._row
+        assert self._known is not None
         return {
-            camera: 1e3 * float(outcome.position_error[self._row])
-            for camera, outcome in self._delivered().items()
+            name: 1e3 * float(known.position_error[row, j])
+            for j, name in enumerate(self._known.cameras)
+            if known.calibrated[row, j]
         }
 
     def _mean_true_mm(self) -> float:
@@ -461,52 +450,66 @@ class CpsCampaignEnv(gym.Env):
 
     def parent_error_mm(self) -> float:
         """The trial's parent position error at its last fix, mm."""
-        assert self.batch is not None
-        estimate, truth = self.batch.fixes[-1]
-        return 1e3 * float(np.linalg.norm(estimate.translation[self._row] - truth[self._row]))
+        return 1e3 * float(self._now().parent_error[self._row])
 
-    def _child_estimate(self, child: str) -> NDArray[np.float64]:
-        """(3,) a child's estimate: its CPS position (its own before CPS measured it), m,
-        and its own yaw, rad."""
-        assert self.batch is not None
-        believed = self.batch.robots[child].believed[self._row]
-        try:
-            xy = self.batch.cps.child_position(child)[self._row, :2]
-        except ValueError:  # not measured yet
-            xy = believed[:2]
-        return np.array([xy[0], xy[1], believed[2]])
+    def _stations(self) -> Stations:
+        """The calibration stations, in the order of ``go_to``."""
+        planner, scenario = self.planner, self.scenario
+        assert planner is not None
+        assert scenario is not None
+        names = [c.name for c in scenario.cameras]
+        placed = [planner.stations[name] for name in planner.order]
+        here = planner.here()
+        return Stations(
+            np.array([names.index(str(st.camera)) for st in placed], dtype=np.int64),
+            np.array([st.xy for st in placed]).reshape(-1, 2),
+            np.array([planner.route_distance(st) for st in placed]),
+            planner.order.index(here) if here in planner.order else None,
+        )
+
+    def observations(self, rows: list[int]) -> dict[str, NDArray[np.float64]]:
+        """The observations of ``rows`` of the episode's batch (the episode's and those of
+        the episodes that played its moves in the same batch), each entry (R, ...)."""
+        planner, scenario = self.planner, self.scenario
+        assert planner is not None
+        assert scenario is not None
+        assert self._free is not None
+        known = self._now()
+        assert self._known is not None
+        goal = planner.goal_station
+        distance = known.distance[rows]
+        here = planner.here_camera()
+        names = [c.name for c in scenario.cameras]
+        return build_observations(
+            decision=planner.decision,
+            parent_xy=known.parent_xy[rows],
+            parent_yaw=known.parent_yaw[rows],
+            parent_covariance=known.parent_covariance[rows],
+            children_pose=known.children[rows],
+            travel=np.column_stack(
+                [distance, planner.budget_m - distance, np.full(len(rows), planner.time)]
+            ),
+            goal_xy=None if goal is None or planner.decision != "leg" else goal.xy,
+            camera_xyz=self._known.positions,
+            calibrated=known.calibrated[rows],
+            predicted_error=known.predicted[rows],
+            transfer_now=known.transfer_now[rows],
+            here_camera=None if here is None else names.index(here),
+            max_cameras=self.max_cameras,
+            stations=self._stations(),
+            max_stations=self.layout.max_stations,
+            free_space=self._free.rays(known.parent_xy[rows], known.parent_yaw[rows]),
+        )
 
     def _observation(self) -> dict[str, NDArray[np.float64]]:
-        planner, batch = self.planner, self.batch
-        assert planner is not None
-        assert batch is not None
-        assert self._free is not None
-        centre, yaw, covariance = self._parent_estimate()
-        children = np.array([self._child_estimate(c) for c in batch.plan.children])
-        goal = planner.goal_station
-        left = planner.budget_m - float(batch.distance[self._row])
-        return build_observation(
-            decision=planner.decision,
-            parent_xy=centre[:2],
-            parent_yaw=yaw,
-            parent_covariance=covariance,
-            children_pose=children,
-            travel=(float(batch.distance[self._row]), left, planner.time),
-            goal_xy=None if goal is None or planner.decision != "leg" else goal.xy,
-            cameras=self.camera_states(),
-            max_cameras=self.max_cameras,
-            stations=self.station_states(),
-            max_stations=self.layout.max_stations,
-            free_space=self._free.rays(centre[:2], yaw),
-        )
+        return {k: v[0] for k, v in self.observations([self._row]).items()}
 
     def _info(self) -> dict[str, Any]:
         assert self.planner is not None
-        assert self.batch is not None
         return {
             "camera_errors_mm": self.camera_errors_mm(),
             "parent_error_mm": self.parent_error_mm(),
-            "distance_m": float(self.batch.distance[self._row]),
+            "distance_m": float(self._now().distance[self._row]),
             "time_s": self.planner.time,
             "action_mask": self.planner.mask.copy(),
             "decision": self.planner.decision,

@@ -41,15 +41,17 @@ class FreeSpace:
         self.blocked = blocked
 
     def rays(
-        self, xy: NDArray[np.float64], heading: float, directions: int = 8
+        self, xy: NDArray[np.float64], heading: NDArray[np.float64], directions: int = 8
     ) -> NDArray[np.float64]:
-        """(directions,) distance from ``xy`` (2,) m to the first blocked cell along
-        ``directions`` rays evenly spread from ``heading`` (rad) anticlockwise, m, at most
-        :data:`MAX_RANGE`."""
+        """(R, directions) distance from each of (R, 2) ``xy`` (m) to the first blocked cell
+        along ``directions`` rays evenly spread from its (R,) ``heading`` (rad)
+        anticlockwise, m, at most :data:`MAX_RANGE`."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        heading = np.asarray(heading, dtype=float).reshape(-1)
         steps = np.arange(1, int(MAX_RANGE / self.resolution) + 1) * self.resolution
-        angles = heading + 2 * math.pi * np.arange(directions) / directions
-        px = xy[0] + np.cos(angles)[:, None] * steps
-        py = xy[1] + np.sin(angles)[:, None] * steps
+        angles = heading[:, None] + 2 * math.pi * np.arange(directions) / directions
+        px = xy[:, 0, None, None] + np.cos(angles)[..., None] * steps
+        py = xy[:, 1, None, None] + np.sin(angles)[..., None] * steps
         ix = np.floor((px - self.origin[0]) / self.resolution).astype(int)
         iy = np.floor((py - self.origin[1]) / self.resolution).astype(int)
         nx, ny = self.blocked.shape
@@ -57,5 +59,5 @@ class FreeSpace:
         hit = outside.copy()
         inside = ~outside
         hit[inside] = self.blocked[ix[inside], iy[inside]]
-        first = np.where(hit.any(axis=1), hit.argmax(axis=1), len(steps))
+        first = np.where(hit.any(axis=-1), hit.argmax(axis=-1), len(steps))
         return np.concatenate([[0.0], steps])[first]

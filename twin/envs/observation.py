@@ -4,7 +4,6 @@ knows (its estimates and their covariances), nothing from the twin's truth."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,94 +113,114 @@ class CameraState:
 
 
 @dataclass(frozen=True)
-class StationState:
-    """What the campaign knows of a calibration station.
+class Stations:
+    """What the campaign knows of the site's calibration stations, in the order of
+    ``go_to`` (S of them).
 
     Attributes:
-        camera: its camera's index in the site (0 for the first). xy: (2,) m (W).
-        route_distance: the parent's travel to it, m. calibrated: whether its camera is.
-        here: whether the parent stands at it.
+        camera: (S,) each one's camera's index in the site (0 for the first).
+        xy: (S, 2) m (W). route_distance: (S,) the parent's travel to each, m.
+        here: the index of the station the parent stands at, or None.
     """
 
-    camera: int
+    camera: NDArray[np.int64]
     xy: NDArray[np.float64]
-    route_distance: float
-    calibrated: bool
-    here: bool
+    route_distance: NDArray[np.float64]
+    here: int | None
 
 
-def bearing(
-    origin: NDArray[np.float64], heading: float, target: NDArray[np.float64]
-) -> tuple[float, float, float]:
-    """(range m, cos, sin) of ``target`` (2,) seen from ``origin`` (2,) facing ``heading``."""
-    d = np.asarray(target[:2], dtype=float) - origin[:2]
-    rng = float(np.hypot(d[0], d[1]))
-    if rng < 1e-9:
-        return 0.0, 1.0, 0.0
-    angle = math.atan2(d[1], d[0]) - heading
-    return rng, math.cos(angle), math.sin(angle)
+def bearings(
+    origin: NDArray[np.float64], heading: NDArray[np.float64], targets: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(R, N) range m, cos and sin of (N, 2+) ``targets`` seen from (R, 2) ``origin``
+    facing (R,) ``heading`` rad (a target at the origin reads range 0, bearing 0)."""
+    d = np.asarray(targets, dtype=float)[None, :, :2] - origin[:, None, :2]
+    rng = np.hypot(d[..., 0], d[..., 1])
+    angle = np.arctan2(d[..., 1], d[..., 0]) - heading[:, None]
+    there = rng < 1e-9
+    return (
+        np.where(there, 0.0, rng),
+        np.where(there, 1.0, np.cos(angle)),
+        np.where(there, 0.0, np.sin(angle)),
+    )
 
 
-def build_observation(
+def build_observations(
     *,
     decision: str | None,
     parent_xy: NDArray[np.float64],
-    parent_yaw: float,
+    parent_yaw: NDArray[np.float64],
     parent_covariance: NDArray[np.float64],
     children_pose: NDArray[np.float64],
-    travel: tuple[float, float, float],
+    travel: NDArray[np.float64],
     goal_xy: NDArray[np.float64] | None,
-    cameras: list[CameraState],
+    camera_xyz: NDArray[np.float64],
+    calibrated: NDArray[np.bool_],
+    predicted_error: NDArray[np.float64],
+    transfer_now: NDArray[np.float64],
+    here_camera: int | None,
     max_cameras: int,
-    stations: list[StationState],
+    stations: Stations,
     max_stations: int,
     free_space: NDArray[np.float64],
 ) -> dict[str, NDArray[np.float64]]:
-    """The observation (see :data:`ENTRIES`), every value finite."""
+    """The observations (see :data:`ENTRIES`) of R trials of one campaign (the same
+    decision, goal and stations), each entry with a leading axis of R, every value finite.
+
+    Args:
+        parent_xy: (R, 2) m. parent_yaw: (R,) rad. parent_covariance: (R, 4, 4) of
+            (yaw rad, x m, y m, z m). children_pose: (R, N_child, 3) x m, y m, yaw rad.
+        travel: (R, 3) distance travelled m, budget left m, campaign time s.
+        goal_xy: (2,) the station travelled to (at a leg), m, or None.
+        camera_xyz: (C, 3) the cameras' nominal positions, m. calibrated,
+            predicted_error, transfer_now: (R, C) (see
+            :class:`twin.envs.knowledge.Knowledge`), m. here_camera: the index of the
+            camera whose station the parent stands at, or None.
+        stations: the calibration stations. free_space: (R, DIRECTIONS) m.
+    """
+    n_rows, n_cams = calibrated.shape
     scale = np.array([1e3, 1e3, 1e3, 1e3])  # rad -> mrad, m -> mm
-    rows = np.zeros((max_cameras, len(CAMERA_COLUMNS)))
-    for k, cam in enumerate(cameras):
-        rng, c, s = bearing(parent_xy, parent_yaw, cam.position)
-        rows[k] = (
-            1.0,
-            float(cam.calibrated),
-            cam.predicted_error,
-            cam.transfer_now,
-            rng,
-            c,
-            s,
-            float(cam.here),
-        )
-    table = np.zeros((max_stations, len(STATION_COLUMNS)))
-    for k, st in enumerate(stations):
-        rng, c, s = bearing(parent_xy, parent_yaw, st.xy)
-        table[k] = (
-            1.0,
-            st.camera + 1,
-            float(st.calibrated),
-            st.route_distance,
-            rng,
-            c,
-            s,
-            float(st.here),
-        )
-    goal = np.zeros(4)
+    cameras = np.zeros((n_rows, max_cameras, len(CAMERA_COLUMNS)))
+    if n_cams:
+        rng, c, s = bearings(parent_xy, parent_yaw, camera_xyz)
+        cameras[:, :n_cams, 0] = 1.0
+        cameras[:, :n_cams, 1] = calibrated
+        cameras[:, :n_cams, 2] = predicted_error
+        cameras[:, :n_cams, 3] = transfer_now
+        cameras[:, :n_cams, 4:7] = np.stack([rng, c, s], axis=-1)
+        if here_camera is not None:
+            cameras[:, here_camera, 7] = 1.0
+    table = np.zeros((n_rows, max_stations, len(STATION_COLUMNS)))
+    n_st = len(stations.camera)
+    if n_st:
+        rng, c, s = bearings(parent_xy, parent_yaw, stations.xy)
+        table[:, :n_st, 0] = 1.0
+        table[:, :n_st, 1] = stations.camera + 1
+        table[:, :n_st, 2] = calibrated[:, stations.camera]
+        table[:, :n_st, 3] = stations.route_distance
+        table[:, :n_st, 4:7] = np.stack([rng, c, s], axis=-1)
+        if stations.here is not None:
+            table[:, stations.here, 7] = 1.0
+    goal = np.zeros((n_rows, 4))
     if goal_xy is not None:
-        goal = np.array([1.0, *bearing(parent_xy, parent_yaw, goal_xy)])
-    children = np.zeros((2, 4))
-    children[: len(children_pose), :2] = children_pose[:2, :2]
-    children[: len(children_pose), 2] = np.cos(children_pose[:2, 2])
-    children[: len(children_pose), 3] = np.sin(children_pose[:2, 2])
+        rng, c, s = bearings(parent_xy, parent_yaw, np.asarray(goal_xy, dtype=float)[None])
+        goal[:, 0] = 1.0
+        goal[:, 1:] = np.concatenate([rng, c, s], axis=1)
+    children = np.zeros((n_rows, 2, 4))
+    shown = min(2, children_pose.shape[1])
+    children[:, :shown, :2] = children_pose[:, :shown, :2]
+    children[:, :shown, 2] = np.cos(children_pose[:, :shown, 2])
+    children[:, :shown, 3] = np.sin(children_pose[:, :shown, 2])
     obs = {
-        "decision": np.array([decision == "leg", decision == "visit"], dtype=float),
-        "parent": np.array(
-            [parent_xy[0], parent_xy[1], math.cos(parent_yaw), math.sin(parent_yaw)]
+        "decision": np.tile([decision == "leg", decision == "visit"], (n_rows, 1)).astype(float),
+        "parent": np.column_stack(
+            [parent_xy[:, 0], parent_xy[:, 1], np.cos(parent_yaw), np.sin(parent_yaw)]
         ),
         "parent_covariance": parent_covariance * np.outer(scale, scale),
         "children": children,
         "travel": np.asarray(travel, dtype=float),
         "goal": goal,
-        "cameras": rows,
+        "cameras": cameras,
         "stations": table,
         "free_space": np.asarray(free_space, dtype=float),
     }

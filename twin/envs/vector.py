@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from twin.batch.execute import BatchRun
 from twin.batch.plan import Step
 from twin.envs.campaign_env import CpsCampaignEnv
+from twin.envs.knowledge import BatchKnowledge
 
 __all__ = ["CpsCampaignVectorEnv"]
 
@@ -39,11 +40,13 @@ class _Group:
 
     Attributes:
         batch: their trials. history: every plan step the batch executed, in order.
+        known: what the batch knows (computed once per step for every member).
         members: each member's environment index and its row.
     """
 
     batch: BatchRun
     history: list[Step]
+    known: BatchKnowledge
     members: dict[int, int] = field(default_factory=dict)
 
 
@@ -126,10 +129,10 @@ class CpsCampaignVectorEnv(VectorEnv):
             batch = BatchRun(first.planner.plan, [trial for _, trial, _ in episodes])
             for step in steps:
                 batch.step(step)
-            group = _Group(batch, list(steps))
+            group = _Group(batch, list(steps), first.knowledge_of(batch))
             for row, (k, _, _) in enumerate(episodes):
                 group.members[k] = row
-                self.envs[k]._attach(batch, row, steps)
+                self.envs[k]._attach(batch, row, steps, group.known)
             self._groups.append(group)
 
     def _leave(self, k: int) -> None:
@@ -193,11 +196,10 @@ class CpsCampaignVectorEnv(VectorEnv):
                 target.history.extend(steps)
                 for k in members:
                     outcomes[k] = (taken, self.envs[k]._account(taken, steps), fallbacks[k])
-        observations = []
         for k, env in enumerate(self.envs):
             if k in outcomes:
                 taken, reward, fallback = outcomes[k]
-                obs, rewards[k], terminated[k], _, info = env._outcome(taken, reward, fallback)
+                rewards[k], terminated[k], info = env._finish(taken, reward, fallback)
                 self._steps[k] += 1
                 truncated[k] = (
                     not terminated[k]
@@ -205,11 +207,10 @@ class CpsCampaignVectorEnv(VectorEnv):
                     and self._steps[k] >= self.max_episode_steps
                 )
             else:
-                obs, info = env._observation(), env._info()
-            observations.append(obs)
+                info = env._info()
             infos = self._add_info(infos, info, k)
         self._autoreset = terminated | truncated
-        return self._stack(observations), rewards, terminated, truncated, infos
+        return self._observations(), rewards, terminated, truncated, infos
 
     def _split(self, group: _Group, members: list[int]) -> _Group:
         """Move ``members`` out of ``group`` into a batch of their own that has executed
@@ -220,22 +221,27 @@ class CpsCampaignVectorEnv(VectorEnv):
         batch = BatchRun(first.planner.plan, seeds)
         for step in group.history:
             batch.step(step)
-        part = _Group(batch, list(group.history))
+        part = _Group(batch, list(group.history), first.knowledge_of(batch))
         for row, k in enumerate(members):
             group.members.pop(k)
             part.members[k] = row
-            env = self.envs[k]
-            env.batch, env._row = batch, row
+            self.envs[k]._join(batch, row, part.known)
         self._groups.append(part)
         return part
 
     # -- what comes back -----------------------------------------------------------------------
     def _observations(self) -> dict[str, NDArray[np.float64]]:
-        return self._stack([env._observation() for env in self.envs])
-
-    @staticmethod
-    def _stack(observations: list[dict[str, NDArray[np.float64]]]) -> dict[str, Any]:
-        return {key: np.stack([o[key] for o in observations]) for key in observations[0]}
+        """Every episode's observation, each group's built at once (its members share their
+        campaign's state; their rows of the batch differ)."""
+        out: dict[str, NDArray[np.float64]] = {}
+        for group in self._groups:
+            indices = list(group.members)
+            part = self.envs[indices[0]].observations([group.members[k] for k in indices])
+            for key, values in part.items():
+                if key not in out:
+                    out[key] = np.zeros((self.num_envs, *values.shape[1:]))
+                out[key][indices] = values
+        return out
 
     def action_masks(self) -> NDArray[np.bool_]:
         """(num_envs, n) the moves each episode allows now."""
