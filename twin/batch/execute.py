@@ -19,13 +19,13 @@ CPS with its joint covariance and consistency tests, LED positions from the mark
 Tsai's calibration of every visit and the Table III metrics.
 
 A data point holds the LEDs the camera found in the noise-free plan (:class:`twin.batch.
-plan.Point`: all of them, or with ``campaign.data_stops = "accuracy"`` those the stop shows);
+plan.Point`: all of them, or at stops chosen for accuracy those the stop shows);
 the LEDs it did not find give no point and no pixel residual.
 
 What the batch leaves out, which the geometric fidelity keeps: decisions taken again under
 noise (a re-aim after a lost lock or a wrong prism; a stop where an LED left the image is
-given up, as the campaign does, but not replaced by another: with ``campaign.data_stops =
-"accuracy"`` only that LED is given up, an LED that came into view at a stop planned
+given up, as the campaign does, but not replaced by another: at a stop chosen for accuracy
+only that LED is given up, an LED that came into view at a stop planned
 without it is not used, and the stops are not planned again from the noisy estimates; a fix
 that failed its consistency test is not measured again: such a trial keeps its estimate and
 counts a failure), the faults of ``[faults]``, the check shots at a child placed earlier
@@ -504,7 +504,7 @@ class BatchRun:
         if len(leds) < true.shape[1]:
             # The LEDs the plan's camera found at this stop; the others give no point.
             world, pixels, seen = world[:, leds], pixels[:, leds], seen[:, leds]
-        missed = self._missed(seen)
+        missed = _missed(seen, step.partial)
         self.failures += missed.any(axis=1)
         world = np.where(missed[..., None], np.nan, world)
         pixels = np.where(missed[..., None], np.nan, pixels)
@@ -517,16 +517,6 @@ class BatchRun:
             cov = data.covariances[-1][:, rows][:, :, rows]
             self.network.stop(step.camera, step.visit, world, cov, pixels)
         data.leds.append(leds)
-
-    def _missed(self, seen: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """(T, k) which of a stop's k planned LEDs each trial gives up, from (T, k) which
-        it found: with ``campaign.data_stops = "all_leds"`` a trial that misses one gives
-        up the whole stop, with ``"accuracy"`` only the LEDs it missed (as the campaign
-        does). Either counts one failure a stop."""
-        if self.plan.scenario.campaign.data_stops == "accuracy":
-            return ~seen
-        lost = ~seen.all(axis=1)
-        return np.broadcast_to(lost[:, None], seen.shape)
 
     def _calibrate(self, step: Calibrate) -> None:
         data = self._dataset(step, "visit")
@@ -586,6 +576,17 @@ class BatchRun:
             distance=self.distance.copy(),
             failures=self.failures.copy(),
         )
+
+
+def _missed(seen: NDArray[np.bool_], partial: bool) -> NDArray[np.bool_]:
+    """(T, k) which of a stop's k planned LEDs each trial gives up, from (T, k) which it
+    found: where the stop's plan is ``partial`` only the LEDs it missed (as the campaign
+    does), else a trial that misses one gives up the whole stop. Either counts one failure
+    a stop."""
+    if partial:
+        return ~seen
+    lost = ~seen.all(axis=1)
+    return np.broadcast_to(lost[:, None], seen.shape)
 
 
 def transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -107,14 +107,17 @@ class Point:
     """A camera found the LEDs of a child at its last placement: a data point.
 
     ``leds`` are the indices of the child's LEDs the camera found there without noise, in
-    order: the point's LED points (every LED with ``campaign.data_stops = "all_leds"``, a
-    stop's LEDs in the image with ``"accuracy"``)."""
+    order: the point's LED points (every LED where the stop's plan needs them all, those in
+    the image at a stop chosen for accuracy). ``partial``: whether the stop's plan takes a
+    point from the LEDs found where not all are (a trial that misses a planned LED then
+    loses that LED, not the whole stop)."""
 
     dataset: str
     camera: str
     visit: int
     child: str
     leds: tuple[int, ...] = tuple(range(N_LEDS))
+    partial: bool = False
 
 
 @dataclass(frozen=True)
@@ -384,7 +387,7 @@ class _StepParser:
                     f"{len(rec.leds_world)} LED points, but the camera's last observation "
                     f"found LEDs {leds}"
                 )
-            steps.append(Point(rec.dataset, rec.camera, rec.visit, rec.child, leds))
+            steps.append(Point(rec.dataset, rec.camera, rec.visit, rec.child, leds, rec.partial))
         elif topic == DATASET:
             steps.append(DataSetDone(rec.dataset, rec.camera, rec.visit, rec.points))
         elif topic == CALIBRATION:

@@ -145,6 +145,7 @@ class DataCollection:
             pixels,
             parent.level2world(obs.point_level)[:2],
             cov,
+            partial,
         )
 
     def calibrate(self, camera: str, visit: int, station: NDArray[np.float64], plan: StopPlan):

@@ -96,6 +96,9 @@ class DataPoint:
         leds_covariance: (3 N_led, 3 N_led) joint covariance of ``leds_world`` from the
             measured marker pose (shared by the LEDs of one stop), without the parent's
             pose error (common to a whole station), m^2; empty when unknown.
+        partial: whether the stop's plan takes a point from the LEDs the camera finds where
+            it does not find them all (:attr:`twin.campaign.strategy.StopPlan.partial`);
+            else such a stop gives no point.
     """
 
     timestamp: float
@@ -107,6 +110,7 @@ class DataPoint:
     pixels: NDArray[np.float64]
     child_xy: NDArray[np.float64]
     leds_covariance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    partial: bool = False
 
 
 @dataclass(frozen=True)

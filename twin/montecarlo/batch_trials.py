@@ -38,8 +38,8 @@ once, so a chunk stays within a few hundred MB."""
 
 BATCH_OMITS = (
     "decisions taken again under noise: re-aims after a lost lock or a wrong prism; a stop "
-    "where an LED left the image is given up (with campaign.data_stops = 'accuracy' only "
-    "that LED) but not replaced by another; an LED that came into view at a stop planned "
+    "where an LED left the image is given up (at a stop chosen for accuracy only that "
+    "LED) but not replaced by another; an LED that came into view at a stop planned "
     "without it is not used; the stops for accuracy are not planned again from the noisy "
     "estimates; a fix that failed its consistency test is not measured again (such a trial "
     "keeps its estimate and counts a failure)",

@@ -29,6 +29,7 @@ def accuracy_plan():
 
 def test_the_plan_holds_the_leds_each_stop_showed(accuracy_plan):
     points = [s for s in accuracy_plan.steps if isinstance(s, Point)]
+    assert all(p.partial for p in points), "stops chosen for accuracy take partial points"
     assert all(p.leds and list(p.leds) == sorted(set(p.leds)) for p in points)
     assert all(0 <= k < 4 for p in points for k in p.leds)
     assert any(len(p.leds) < 4 for p in points), "the smoke camera's stops show some LEDs"
@@ -112,12 +113,24 @@ def test_a_missing_led_is_given_up_alone(accuracy_plan):
     np.testing.assert_array_equal(v.points, [sum(k != 0 for _, k in columns)] * 2)
     assert np.all(v.position_error < 1e-6)
     # The same LED at stops that must show every LED gives up every stop that held it.
-    all_leds = dataclasses.replace(
-        wide, scenario=with_values(wide.scenario, {"campaign.data_stops": "all_leds"})
+    whole = tuple(
+        dataclasses.replace(s, partial=False) if isinstance(s, Point) else s for s in wide.steps
     )
-    out = BatchRun(all_leds, [1], noise=quiet).run()
+    out = BatchRun(dataclasses.replace(wide, steps=whole), [1], noise=quiet).run()
     (v,) = out.calibrations.values()
     assert out.failures[0] == with_led0
     kept = sum(0 not in s.leds for s, _ in columns)
     too_few = kept < accuracy_plan.scenario.campaign.min_points  # then not calibrated
     assert v.points[0] == (0 if too_few else kept)
+
+
+@pytest.mark.parametrize(("strategy", "partial"), [("planned", True), ("paper", False)])
+def test_the_strategy_decides_partial_points_whatever_the_scenario_says(strategy, partial):
+    # The smoke scenario says data_stops = "all_leds"; the planned strategy chooses its
+    # stops for accuracy and takes partial points there, and its trials must too (they gave
+    # up whole stops, and calibrated nothing where noise moved an LED off the image).
+    sc = load_scenario(SMOKE)
+    assert sc.campaign.data_stops == "all_leds"
+    points = [s for s in record_plan(sc, strategy).steps if isinstance(s, Point)]
+    assert points
+    assert {p.partial for p in points} == {partial}
