@@ -116,7 +116,16 @@ class DataCollection:
         seen = self.rig.led_sensors[camera].observe(child, self.sequence)
         if not seen.complete:
             kinds = sorted({f for f in seen.failures if f is not None})
-            for kind in kinds:
+            # An LED the stop was planned without is not a failure where it is not found.
+            planned_leds = planned.stop.leds
+            missed = sorted(
+                {
+                    f
+                    for k, f in enumerate(seen.failures)
+                    if f is not None and (planned_leds is None or k in planned_leds)
+                }
+            )
+            for kind in missed:
                 self.journal.failure(f"led_{kind}", f"LEDs {kind}", child, camera)
             if not (partial and seen.found.any()):
                 message = "not all LEDs found: " + ", ".join(kinds)

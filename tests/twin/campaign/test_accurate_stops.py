@@ -141,8 +141,10 @@ def test_partial_points_reach_the_calibration(smoke):
     # The LED points are where the total station put them: within 20 mm of the truth of
     # a 2 mm + 2 ppm instrument, so the camera is calibrated, not merely solved.
     assert cal["truth"]["position_error_mm"] < 20.0
-    # The missing LEDs' failures are journaled by kind, and the log's readers cope.
-    assert any(k.startswith("led_") for k in results["failures"])
+    # A stop planned without some LEDs gives a point of fewer LEDs (above) and no failure
+    # for those: none of this run's stops lost an LED it was planned with to the image's
+    # edge. The log's readers cope with the points of fewer LEDs.
+    assert "led_not_in_view" not in results["failures"]
     again = results_from_log(log.messages, sc.campaign.pixel_size_mm)
     assert len(again["calibrations"]) == 1
     predictions, _ = predictions_from_log(log.messages, 0.05)

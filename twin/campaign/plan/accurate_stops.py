@@ -111,7 +111,12 @@ def partial_view_stops(
     )
     order = farthest_first(feats, start=np.array([0.5, 0.5, 0.5]))
     return [
-        AccurateStop(Stop(xy[keep[k]].copy(), float(yaw[keep[k]])), pix[k], shown[k], led_w[k])
+        AccurateStop(
+            Stop(xy[keep[k]].copy(), float(yaw[keep[k]]), tuple(np.flatnonzero(shown[k]).tolist())),
+            pix[k],
+            shown[k],
+            led_w[k],
+        )
         for k in order
     ]
 
