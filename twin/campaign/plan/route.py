@@ -56,7 +56,11 @@ class RoutePath:
     def project(self, xy: ArrayLike, near: float | None = None, window: float = 20.0) -> float:
         """Arc length of the path's point nearest to ``xy``, m; with ``near``, only the part
         of the path within ``window`` m of arc length ``near`` is searched (a path that comes
-        back past itself has two nearest points)."""
+        back past itself has two nearest points).
+
+        The path goes on straight beyond its ends: a point nearest to that straight
+        continuation (within the window) projects to the end it continues, not to another
+        part of a path that comes back near its end."""
         q = np.asarray(xy, dtype=float).reshape(2)
         lo, hi = (-math.inf, math.inf) if near is None else (near - window, near + window)
         best, best_d = float(np.clip(near, 0.0, self.length)) if near is not None else 0.0, math.inf
@@ -71,6 +75,15 @@ class RoutePath:
             dist = float(np.linalg.norm(a + t * d - q))
             if dist < best_d - 1e-9:
                 best, best_d = self.starts[i] + t, dist
+        for end, s_end, sign in ((0, 0.0, -1.0), (-1, self.length, 1.0)):
+            if not lo <= s_end <= hi:
+                continue
+            d = self.directions[end]
+            beyond = sign * float((q - self.points[end]) @ d)
+            if beyond > 0.0:
+                dist = float(np.linalg.norm(self.points[end] + sign * beyond * d - q))
+                if dist < best_d - 1e-9:
+                    best, best_d = s_end, dist
         return best
 
     def vertices_between(self, s0: float, s1: float) -> list[NDArray[np.float64]]:

@@ -1,0 +1,36 @@
+"""The route as a path walked by arc length: projection onto it, near its ends and where it
+comes back past itself."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from twin.campaign.plan.route import RoutePath
+
+# The closed hall's route: out along y = 0, back along y = 4, and down to the start.
+CLOSED = RoutePath([[0.0, 0.0], [40.0, 0.0], [40.0, 4.0], [-5.0, 4.0], [-5.0, 0.0], [0.0, 0.0]])
+
+
+def test_a_point_past_the_end_of_a_closed_route_projects_to_its_end():
+    # A child's stop ahead of the last station lies past the route's end (x > 0), next to
+    # the route's first metres. Searching near the end (arc 93.7 of 98), the part of the
+    # route 4.7 m away along y = 4 is nearer than the end itself (5.05 m), but the route's
+    # straight continuation past its end is 0.7 m away: the stop is past the end. Its
+    # projection used to be 79 m, and the child drove back round the corner through the
+    # parked parent.
+    assert CLOSED.length == 98.0
+    assert CLOSED.project([5.0, -0.7], near=93.74) == 98.0
+    assert CLOSED.project([-1.0, 0.5], near=93.74) == 97.0  # on the route: as before
+    # Searching near the start, the same point is on the route's first segment.
+    assert CLOSED.project([5.0, -0.7], near=2.0) == 5.0
+
+
+@given(st.floats(0.01, 10.0), st.floats(-3.0, 3.0), st.sampled_from([None, 2.0, 9.0, 15.0]))
+def test_on_an_open_route_points_past_an_end_project_to_it(beyond, side, near):
+    path = RoutePath([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    assert path.project([-beyond, side], near) == 0.0
+    assert path.project([10.0 + side, 10.0 + beyond], near) == 20.0
+    # A point beside the route still projects onto it.
+    assert np.isclose(path.project([10.0 + 0.5 * side, 5.0], near), 15.0)
