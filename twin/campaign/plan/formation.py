@@ -43,6 +43,10 @@ UNCERTAINTY_SIGMAS = 2.0
 """Standard deviations of the parent's position estimate that a formation's lines of sight
 keep from obstacles, where that is more than :data:`SIGHT_MARGIN`."""
 
+STEPPED_SIGMAS = (UNCERTAINTY_SIGMAS, 1.0)
+"""The standard deviations a formation's lines of sight keep, tried in turn where more than
+:data:`SIGHT_MARGIN`: where a corner leaves no room for two, one is still worth keeping."""
+
 
 def sight_margins(parent_std: float) -> tuple[float, ...]:
     """The sight margins a formation tries, in turn, m: the widest first,
@@ -52,14 +56,15 @@ def sight_margins(parent_std: float) -> tuple[float, ...]:
     truly stands off that by about the parent's position error (the children are placed
     from the parent), and a line of sight planned to pass a corner by :data:`SIGHT_MARGIN`
     grazes it in truth. Where :data:`UNCERTAINTY_SIGMAS` times the parent's horizontal
-    position standard deviation is more than that, it is tried first.
+    position standard deviation is more than that, it is tried first, then one standard
+    deviation (:data:`STEPPED_SIGMAS`) where that is more too.
 
     Args:
         parent_std: the parent's horizontal position standard deviation along its most
             uncertain axis, m (:attr:`twin.localization.pose.ParentPose.horizontal_std`).
     """
-    wide = UNCERTAINTY_SIGMAS * parent_std
-    return (wide, SIGHT_MARGIN) if wide > SIGHT_MARGIN else (SIGHT_MARGIN,)
+    wider = [n * parent_std for n in STEPPED_SIGMAS if n * parent_std > SIGHT_MARGIN]
+    return (*wider, SIGHT_MARGIN)
 
 
 def _instrument(xy: ArrayLike, instrument_z: float) -> NDArray[np.float64]:
