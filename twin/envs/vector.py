@@ -4,7 +4,9 @@ together: ``gymnasium.make_vec("camnet/CpsCampaign-v0", num_envs=N)`` (the regis
 
 Episodes that have played the same moves on the same site have executed the same plan
 steps: they form a group, whose trials are the rows of one batch
-(:class:`twin.batch.execute.BatchRun`), and a step of the plan runs once for all of them.
+(:class:`twin.batch.execute.BatchRun`), and a step of the plan runs once for all of them;
+what the batch knows after it (:mod:`twin.envs.knowledge`) is computed once too, and the
+group's observations are built in one call.
 When the members of a group choose different moves, the largest part keeps the batch and
 each other part replays the group's steps into a batch of its own (a trial gives the same
 result alone or in any batch, so a split changes no number). Episodes that reset at the
