@@ -4,15 +4,23 @@ and a real one."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from calib.detection import DetectorConfig, detect_leds
+from calib.detection import DetectionFailure, DetectorConfig, detect_leds
 from calib.detection.sequence import SwitchingSequence
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds
 from twin.hal.errors import NoFrameError
 from twin.hal.readings import LedObservation
+
+SCENE_RETRIES = 2
+"""Times a sequence is captured again while an LED comes back ``scene_changed`` (something
+moved where it is between the frames: a person walking past, or a frame exposed before the
+LEDs switched): the detector's own advice."""
+
+SCENE_CHANGED = DetectionFailure.SCENE_CHANGED.value
 
 
 class ImageLedSensor(LedSensor):
@@ -26,6 +34,9 @@ class ImageLedSensor(LedSensor):
         config: the detector's settings.
         led_line: optional (N_led,) LED heights on their mast, m (lets the detector tell an
             occluded LED from one out of view).
+        scene_retries: captures of the sequence again while an LED comes back
+            ``scene_changed``; the capture that found the most LEDs is kept (the later of
+            equals), its ``frames`` counting every image taken.
     """
 
     def __init__(
@@ -37,13 +48,17 @@ class ImageLedSensor(LedSensor):
         frame_interval: float = 0.0,
         config: DetectorConfig | None = None,
         led_line: Sequence[float] | None = None,
+        scene_retries: int = SCENE_RETRIES,
     ) -> None:
+        if not (isinstance(scene_retries, int) and scene_retries >= 0):
+            raise ValueError(f"scene_retries must be an integer >= 0, got {scene_retries!r}")
         self._camera = camera
         self._leds = dict(leds)
         self._clock = clock
         self._interval = float(frame_interval)
         self._config = config if config is not None else DetectorConfig()
         self._line = None if led_line is None else np.asarray(led_line, dtype=float)
+        self._retries = scene_retries
 
     @property
     def camera(self) -> str:
@@ -56,6 +71,19 @@ class ImageLedSensor(LedSensor):
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         if child not in self._leds:
             raise ValueError(f"no LEDs for child {child!r}; known: {sorted(self._leds)}")
+        best = self._capture(child, sequence)
+        frames = best.frames
+        for _ in range(self._retries):
+            if SCENE_CHANGED not in best.failures:
+                break
+            again = self._capture(child, sequence)
+            frames += again.frames
+            if _found(again) >= _found(best):
+                best = again
+        return best if frames == best.frames else dataclasses.replace(best, frames=frames)
+
+    def _capture(self, child: str, sequence: SwitchingSequence) -> LedObservation:
+        """One capture of the sequence and what the detector found in it."""
         leds = self._leds[child]
         frames = []
         try:
@@ -103,3 +131,8 @@ class ImageLedSensor(LedSensor):
 
     def close(self) -> None:
         """The camera and LEDs belong to the rig, which closes them."""
+
+
+def _found(observation: LedObservation) -> int:
+    """LEDs an observation found."""
+    return sum(f is None for f in observation.failures)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from calib.detection.sequence import SwitchingSequence
@@ -114,3 +115,75 @@ def test_a_camera_without_a_frame_gives_an_observation_without_leds():
     assert obs.frames == 2
     assert not obs.found.any()
     assert leds.switched[-1] == (False,) * 4  # the LEDs are off again
+
+
+def _detections(failures):
+    """What the detector returns for LEDs that failed as ``failures`` (None: found)."""
+    from types import SimpleNamespace
+
+    from calib.detection import DetectionFailure
+
+    return SimpleNamespace(
+        leds=[
+            SimpleNamespace(
+                led=k,
+                pixel=None if f else (10.0 + k, 12.0),
+                sigma_px=0.05,
+                failure=DetectionFailure(f) if f else None,
+            )
+            for k, f in enumerate(failures)
+        ]
+    )
+
+
+def test_a_sequence_whose_scene_changed_is_captured_again(monkeypatch):
+    import twin.hal.led_sensing as sensing
+
+    # Something moved under LED 1 in the first capture (a frame from before the switch, a
+    # person walking past); the second capture finds every LED.
+    answers = [
+        _detections([None, "scene_changed", None, None]),
+        _detections([None, None, None, None]),
+    ]
+    monkeypatch.setattr(sensing, "detect_leds", lambda *a, **k: answers.pop(0))
+    sequence = SwitchingSequence.binary(4)
+    sensor = ImageLedSensor(StalledCamera(100), {"child1": Leds()}, Clock0())  # type: ignore[arg-type]
+    obs = sensor.observe("child1", sequence)
+    assert obs.failures == (None,) * 4
+    assert obs.frames == 2 * len(sequence.pattern)
+    assert not answers
+
+
+def test_a_scene_that_keeps_changing_keeps_the_best_capture(monkeypatch):
+    import twin.hal.led_sensing as sensing
+
+    answers = [
+        _detections([None, "scene_changed", "scene_changed", None]),
+        _detections([None, "scene_changed", None, None]),
+        _detections(["scene_changed", "scene_changed", "scene_changed", None]),
+        _detections([None, None, None, None]),  # never asked for: the retries are spent
+    ]
+    calls = []
+
+    def detect(*args, **kwargs):
+        calls.append(1)
+        return answers.pop(0)
+
+    monkeypatch.setattr(sensing, "detect_leds", detect)
+    sequence = SwitchingSequence.binary(4)
+    sensor = ImageLedSensor(StalledCamera(100), {"child1": Leds()}, Clock0())  # type: ignore[arg-type]
+    obs = sensor.observe("child1", sequence)
+    assert len(calls) == 1 + sensing.SCENE_RETRIES
+    assert obs.failures == (None, "scene_changed", None, None)
+    assert obs.frames == len(calls) * len(sequence.pattern)
+    # Without retries the first capture is the observation.
+    answers[:] = [_detections([None, "scene_changed", None, None])]
+    once = ImageLedSensor(
+        StalledCamera(100),
+        {"child1": Leds()},
+        Clock0(),  # type: ignore[arg-type]
+        scene_retries=0,
+    )
+    assert once.observe("child1", sequence).failures == (None, "scene_changed", None, None)
+    with pytest.raises(ValueError, match="scene_retries"):
+        ImageLedSensor(StalledCamera(1), {}, Clock0(), scene_retries=-1)  # type: ignore[arg-type]
