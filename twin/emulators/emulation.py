@@ -136,7 +136,10 @@ class Emulation(Closing):
                 {
                     "name": name,
                     "source": server.url,
-                    "settle_frames": 1,
+                    # The emulated stream runs fast and a busy machine lets frames queue
+                    # in the socket: a frame from before the LEDs switched can arrive
+                    # second after the call.
+                    "settle_frames": 3,
                     "timeout_s": CAMERA_TIMEOUT_WALL * self.time_scale,
                 }
                 for name, server in self.cameras.items()
