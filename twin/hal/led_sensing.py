@@ -78,7 +78,7 @@ class ImageLedSensor(LedSensor):
                 break
             again = self._capture(child, sequence)
             frames += again.frames
-            if _found(again) >= _found(best):
+            if again.found.sum() >= best.found.sum():
                 best = again
         return best if frames == best.frames else dataclasses.replace(best, frames=frames)
 
@@ -131,8 +131,3 @@ class ImageLedSensor(LedSensor):
 
     def close(self) -> None:
         """The camera and LEDs belong to the rig, which closes them."""
-
-
-def _found(observation: LedObservation) -> int:
-    """LEDs an observation found."""
-    return sum(f is None for f in observation.failures)
