@@ -103,9 +103,8 @@ class DataCollection:
         if planned.yaw is None:
             self.journal.failure("prisms_hidden", "every heading hides a prism", child, camera)
             return None
-        result = self.rig.children[child].drive_to(planned.stop.xy, planned.yaw)
-        if not result.reached:
-            why = result.message or result.status.value
+        why = self.travel.drive_clear(child, planned.stop.xy, planned.yaw)
+        if why:
             self.journal.failure("point_unreachable", why, child, camera)
             return None
         obs = self.travel.place_child_turning(child)

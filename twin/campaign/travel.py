@@ -19,11 +19,19 @@ from numpy.typing import NDArray
 
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import Journal, RobotJournal
-from twin.campaign.plan.clearance import ROBOT_CLEARANCE, path_clear, robot_fits
+from twin.campaign.plan.clearance import (
+    CHILD_BODY,
+    PARENT_BODY,
+    ROBOT_CLEARANCE,
+    path_clear,
+    robot_fits,
+)
 from twin.campaign.plan.occlusion import unhidden_yaw
+from twin.campaign.plan.ways import ROBOT_MARGIN, way_to
 from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
+from twin.hal.readings import DriveResult, DriveStatus
 from twin.hal.rig import Rig
 from twin.instruments.errors import InconsistentChildrenError, TiltOutOfRangeError
 from twin.instruments.marker import MarkerAssembly
@@ -130,7 +138,7 @@ class Travel:
         # route first.
         blocked = not path_clear(self.space, here, first, 0.3)
         far = np.linalg.norm(here - move.entry) > ROUTE_TOLERANCE
-        if blocked and far and not self._drive(base, move.entry):
+        if blocked and far and not self._drive(base, move.entry).reached:
             return False
         waypoints = list(move.corners)
         last = waypoints[-1] if waypoints else here
@@ -140,15 +148,16 @@ class Travel:
         ):
             waypoints.append(move.on_route)  # along the route, then sideways to the stop
         for point in waypoints:
-            if not self._drive(base, point):
+            if not self._drive(base, point).reached:
                 return False
-        return self._drive(base, move.stop.xy, move.stop.yaw)
+        return self._drive(base, move.stop.xy, move.stop.yaw).reached
 
     def _drive(
         self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
-    ) -> bool:
+    ) -> DriveResult:
         """One straight drive; a child's longer than :data:`LONG_DRIVE_M` in pieces of about
-        :data:`TRACK_STEP_M`, measured after each. Whether the goal was reached."""
+        :data:`TRACK_STEP_M`, measured after each. How it ended (a piece that did not get
+        there ends it)."""
         if base.name in self.rig.children:
             here = base.odometry().pose[:2]
             length = float(np.linalg.norm(goal_xy - here))
@@ -157,10 +166,58 @@ class Travel:
                 heading = math.atan2(*(goal_xy - here)[::-1])
                 for k in range(1, pieces):
                     point = here + (goal_xy - here) * (k / pieces)
-                    if not base.drive_to(point, self._showing(point, heading)).reached:
-                        return False
+                    result = base.drive_to(point, self._showing(point, heading))
+                    if not result.reached:
+                        return result
                     self._track(base.name)
-        return base.drive_to(goal_xy, goal_yaw).reached
+        return base.drive_to(goal_xy, goal_yaw)
+
+    # -- a child's drives off the route ----------------------------------------------------------
+    def standing_robots(self, mover: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(K, 2) where the robots other than the child ``mover`` stand, m (the parent's
+        CPS estimate, the other children's own estimates), and (K,) the distance a drive
+        of ``mover`` keeps from each, m (the two radii and :data:`ROBOT_MARGIN`)."""
+        others = [c for c in self.children if c != mover]
+        centres = [self.cps.parent.translation[:2]] + [self.child_pose(c)[:2] for c in others]
+        keep = [PARENT_BODY + CHILD_BODY + ROBOT_MARGIN]
+        keep += [2 * CHILD_BODY + ROBOT_MARGIN] * len(others)
+        return np.array(centres, dtype=float).reshape(-1, 2), np.array(keep)
+
+    def drive_clear(self, child: str, goal_xy: NDArray[np.float64], goal_yaw: float) -> str:
+        """Drive a child to a stop off the route by a way clear of the standing robots and
+        the map (:func:`twin.campaign.plan.ways.way_to`); "" when it got there, else why
+        not.
+
+        A drive that ended against something (a collision, a timeout) may have left the
+        child off its own estimate: it is measured where it stopped and its odometry
+        corrected (:meth:`relocate`), so that its next drive starts from where it is.
+        """
+        base = self.rig.children[child]
+        robots, keep = self.standing_robots(child)
+        way = way_to(self.space, self.child_pose(child)[:2], goal_xy, robots, keep)
+        if way is None:
+            return "no way clear of the robots standing and the map"
+        for corner, yaw in [*((c, None) for c in way), (goal_xy, goal_yaw)]:
+            result = self._drive(base, corner, yaw)
+            if not result.reached:
+                if result.status in (DriveStatus.COLLISION, DriveStatus.TIMEOUT):
+                    self.relocate(child)
+                return result.message or result.status.value
+        return ""
+
+    def relocate(
+        self,
+        child: str,
+        event: str = "child_relocated",
+        message: str = "measured where its drive ended",
+    ) -> None:
+        """Measure a child where a drive left it (the parent stands) and correct its
+        odometry, recording ``event``; a child the parent cannot see stays as it is."""
+        obs = self.measure(child)
+        if obs is None:
+            return
+        self.journal.event(event, message, child)
+        self._correct_child_pose(child, obs, self.cps.parent)
 
     def _showing(self, xy: NDArray[np.float64], heading: float) -> float:
         """The heading nearest ``heading`` (rad) at which a child at ``xy`` shows all its
@@ -172,11 +229,7 @@ class Travel:
     def _track(self, child: str) -> None:
         """Measure a child on its way (the parent stands) and correct its odometry; a child
         the parent cannot see drives on as it is."""
-        obs = self.measure(child)
-        if obs is None:
-            return
-        self.journal.event("child_tracked", "measured on a long drive", child)
-        self._correct_child_pose(child, obs, self.cps.parent)
+        self.relocate(child, "child_tracked", "measured on a long drive")
 
     # -- measuring and placing children -------------------------------------------------------
     def child_pose(self, child: str) -> NDArray[np.float64]:
@@ -250,7 +303,7 @@ class Travel:
         stand = self.cps.child_position(child)[0][:2]
         self.journal.event("child_drove_again", "back to its last stand and again", child)
         heading = math.atan2(*(stand - self.child_pose(child)[:2])[::-1])
-        if not self._drive(base, stand, self._showing(stand, heading)):
+        if not self._drive(base, stand, self._showing(stand, heading)).reached:
             return None
         seen = self.measure(child)
         if seen is None:

@@ -47,7 +47,7 @@ def _drive_far(tracked: bool) -> tuple[float, list[str]]:
     goal = np.array([x + 40.0, y])
     assert np.linalg.norm(goal - [x, y]) > LONG_DRIVE_M
     if tracked:
-        assert campaign.travel._drive(child, goal)
+        assert campaign.travel._drive(child, goal).reached
     else:
         assert child.drive_to(goal).reached
     truth = sim.frame.pose(sim.world.robot_pose("child1"))

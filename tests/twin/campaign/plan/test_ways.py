@@ -1,0 +1,82 @@
+"""A child's way to a data stop keeps clear of the robots that stand and of the map."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from twin.campaign.plan.clearance import path_clear
+from twin.campaign.plan.ways import WAY_CLEARANCE, leg_clear, way_to
+from twin.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[4]
+SPACE = load_scenario(ROOT / "scenarios" / "smoke.toml").space  # x -2..8, y -3..3, a pillar
+
+KEEP = 0.87
+"""The distance kept from the parent (its radius, a child's and the margin), m."""
+
+
+def _nearest(a, b, centre):
+    """Least distance of (2,) ``centre`` from the segment a-b, m."""
+    a, b, c = (np.asarray(v, dtype=float) for v in (a, b, centre))
+    t = np.clip((c - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-12), 0.0, 1.0)
+    return float(np.linalg.norm(a + t * (b - a) - c))
+
+
+def test_a_clear_straight_way_has_no_corner():
+    assert way_to(SPACE, [1.0, 1.0], [4.0, 1.0], [[2.5, -1.0]], [KEEP]) == []
+
+
+def test_a_robot_on_the_straight_line_is_driven_round_at_the_distance_kept():
+    start, goal, parent = np.array([0.0, 0.0]), np.array([5.0, 0.0]), np.array([2.5, 0.1])
+    assert not leg_clear(SPACE, start, goal, [parent], [KEEP])
+    way = way_to(SPACE, start, goal, [parent], [KEEP])
+    assert way is not None
+    assert len(way) == 1
+    points = [start, *way, goal]
+    for a, b in itertools.pairwise(points):
+        assert _nearest(a, b, parent) >= KEEP
+        assert path_clear(SPACE, a, b, WAY_CLEARANCE)
+
+
+def test_a_child_beside_a_robot_may_drive_away_from_it_but_not_past_it():
+    parent = np.array([2.0, 0.0])
+    beside = parent + np.array([0.6, 0.0])  # nearer than KEEP, where its last drive left it
+    assert leg_clear(SPACE, beside, [5.0, 0.0], [parent], [KEEP])
+    assert not leg_clear(SPACE, beside, [-1.0, 0.0], [parent], [KEEP])
+
+
+def test_no_way_where_robots_and_walls_close_every_side():
+    # A child in the room's corner behind a wall of robots: no corner gets it out.
+    robots = [[-1.0, y] for y in np.arange(-3.0, 3.01, 0.5)]
+    assert way_to(SPACE, [-1.6, -2.5], [5.0, 0.0], robots, [KEEP] * len(robots)) is None
+
+
+def test_a_way_into_the_pillar_is_refused():
+    assert way_to(SPACE, [4.0, -2.2], [6.5, -2.2], [], []) is None
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(-1.5, 7.5),
+    st.floats(-2.5, 2.5),
+    st.floats(-1.5, 7.5),
+    st.floats(-2.5, 2.5),
+    st.floats(-1.5, 7.5),
+    st.floats(-2.5, 2.5),
+)
+def test_every_way_found_keeps_its_distances(x0, y0, x1, y1, px, py):
+    start, goal, parent = np.array([x0, y0]), np.array([x1, y1]), np.array([px, py])
+    way = way_to(SPACE, start, goal, [parent], [KEEP])
+    if way is None:
+        return
+    points = [start, *way, goal]
+    room = min(KEEP, float(np.linalg.norm(start - parent)))
+    for a, b in itertools.pairwise(points):
+        assert _nearest(a, b, parent) >= room - 1e-9
+        assert path_clear(SPACE, a, b, WAY_CLEARANCE)
+        room = min(KEEP, float(np.linalg.norm(b - parent)))

@@ -1,0 +1,111 @@
+"""A child's way to a stop past the robots that stand: straight where that is clear, else
+through one corner beside the straight line.
+
+A child driving to a data stop in a camera's view crosses ground the campaign's route never
+planned, where the parent and the other child stand. A straight drive through one of them
+pushes it: a pushed child is measured again, but a pushed parent has moved its station and
+every point measured after it is in another frame. So a way keeps each standing robot at
+its radius, the driving child's and a margin; and the map's walls and obstacles at a
+clearance.
+
+Planned on the map and the campaign's estimates of where the robots stand.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from twin.campaign.plan.clearance import path_clear
+from twin.scenario.schema import Space
+
+WAY_CLEARANCE = 0.3
+"""Distance a way keeps between the driving child's centre and walls or obstacles, m (its
+radius, 0.29 m: a data stop may stand close to a wall, and the way must reach it)."""
+
+ROBOT_MARGIN = 0.15
+"""Room a way keeps beyond the two robots' radii, m: the driving child's heading and
+stopping errors over a few metres."""
+
+CORNER_FRACTIONS = (0.5, 0.25, 0.75)
+"""Where along the straight line a corner is tried (fraction of the way)."""
+
+CORNER_OFFSETS = (0.75, 1.5, 2.25, 3.0)
+"""How far to either side of the straight line a corner is tried, m."""
+
+
+def _passes(
+    a: NDArray[np.float64], b: NDArray[np.float64], centres: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(K,) least distance of each (K, 2) centre from the segment a-b, m."""
+    d = b - a
+    n2 = max(float(d @ d), 1e-12)
+    t = np.clip((centres - a) @ d / n2, 0.0, 1.0)
+    return np.linalg.norm(a + t[:, None] * d - centres, axis=1)
+
+
+def leg_clear(
+    space: Space,
+    start: ArrayLike,
+    end: ArrayLike,
+    robots: ArrayLike,
+    keep: ArrayLike,
+    clearance: float = WAY_CLEARANCE,
+) -> bool:
+    """Whether a child can drive straight from ``start`` to ``end`` ((2,) m) keeping
+    ``clearance`` from the map and ``keep[k]`` from each robot ((K, 2) centres, m).
+
+    A robot the child already stands nearer than ``keep`` does not block a drive that
+    takes it no nearer (a child leaves the side of a robot it stopped beside).
+    """
+    a = np.asarray(start, dtype=float).reshape(2)
+    b = np.asarray(end, dtype=float).reshape(2)
+    centres = np.asarray(robots, dtype=float).reshape(-1, 2)
+    if len(centres):
+        room = np.minimum(np.asarray(keep, dtype=float), np.linalg.norm(centres - a, axis=1))
+        if (_passes(a, b, centres) < room - 1e-9).any():
+            return False
+    return path_clear(space, a, b, clearance)
+
+
+def way_to(
+    space: Space,
+    start: ArrayLike,
+    goal: ArrayLike,
+    robots: ArrayLike,
+    keep: ArrayLike,
+    clearance: float = WAY_CLEARANCE,
+) -> list[NDArray[np.float64]] | None:
+    """The corners of a way from ``start`` to ``goal`` ((2,) m) that keeps clear of the map
+    and of the robots (:func:`leg_clear`): none where the straight drive is clear, else
+    the one corner (beside the straight line: :data:`CORNER_FRACTIONS`,
+    :data:`CORNER_OFFSETS`) of the shortest such way; None where none is clear.
+
+    Args:
+        space: the map. start, goal: (2,) m.
+        robots: (K, 2) the standing robots' centres, m. keep: (K,) the distance to keep
+            from each, m.
+        clearance: from walls and obstacles, m.
+    """
+    a = np.asarray(start, dtype=float).reshape(2)
+    b = np.asarray(goal, dtype=float).reshape(2)
+    if leg_clear(space, a, b, robots, keep, clearance):
+        return []
+    d = b - a
+    length = float(np.linalg.norm(d))
+    if length < 1e-9:
+        return None
+    side = np.array([-d[1], d[0]]) / length
+    corners = [
+        a + f * d + sign * offset * side
+        for f in CORNER_FRACTIONS
+        for offset in CORNER_OFFSETS
+        for sign in (1.0, -1.0)
+    ]
+    corners.sort(key=lambda c: float(np.linalg.norm(c - a) + np.linalg.norm(b - c)))
+    for corner in corners:
+        if leg_clear(space, a, corner, robots, keep, clearance) and leg_clear(
+            space, corner, b, robots, keep, clearance
+        ):
+            return [corner]
+    return None
