@@ -115,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     from twin.montecarlo import run_montecarlo
     from twin.montecarlo.run import OUTPUTS
     from twin.montecarlo.sources import configurations
+    from twin.montecarlo.summary import failure_summary
     from twin.montecarlo.trial import TrialFailed
 
     if args.ray_address and args.engine != "ray":
@@ -184,6 +185,10 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_INTERRUPTED
     console.print(f"table: {out / 'trials.csv'}\nreport: {out / 'report.md'}")
     if not any(r["calibrated"] for r in rows):
-        console.print("[red]no trial calibrated any camera[/red]: see the report's failures")
+        reasons = failure_summary(rows)["not_calibrated"]
+        why = ", ".join(f"{reason} {n}" for reason, n in reasons.items())
+        console.print(
+            f"[red]no trial calibrated any camera[/red] ({escape(why)}): see the report's failures"
+        )
         return 1
     return 0

@@ -158,6 +158,14 @@ def _adjusted(chunk: BatchChunk, run: BatchRun) -> dict[tuple[str, int], Adjuste
     )
 
 
+def _why_not(unplanned: bool) -> str:
+    """Why a planned visit of a batch trial gave no calibration: the noise-free campaign
+    did not calibrate it (no trial does), or this trial's data fell short."""
+    if unplanned:
+        return "not_in_plan: the noise-free campaign did not calibrate the visit"
+    return "not_calibrated: too few points, or the calibration did not converge"
+
+
 def _rows(
     spec: TrialSpec,
     outcome: BatchOutcome,
@@ -177,6 +185,7 @@ def _rows(
             {
                 **row_key(spec, camera, visit),
                 "calibrated": int(made),
+                "not_calibrated": "" if made else _why_not(v is None),
                 "distance_travelled_m": float(v.distance[k]) if made else math.nan,
                 "points": int(v.points[k]) if made else 0,
                 "position_error_mm": mm(v.position_error[k]) if made else math.nan,

@@ -49,6 +49,28 @@ def _distribution_rows(summary: dict[str, Any]) -> list[str]:
     )
 
 
+def _failures(summary: dict[str, Any]) -> list[str]:
+    """The failures section: the visits not calibrated by reason, the failures by kind."""
+    failures = summary.get("failures")
+    if not failures or not (failures["kinds"] or failures["not_calibrated"]):
+        return []
+    lines = ["", "## Failures (all sources)", ""]
+    if failures["not_calibrated"]:
+        lines.append("Visits not calibrated, by reason:")
+        lines.append("")
+        lines += table(
+            ["reason", "visits"], [[k, str(n)] for k, n in failures["not_calibrated"].items()]
+        )
+        lines.append("")
+    if failures["kinds"]:
+        lines.append(
+            f"Failures by kind, over {failures['trials_with_failures']} trials that had any:"
+        )
+        lines.append("")
+        lines += table(["kind", "count"], [[k, str(n)] for k, n in failures["kinds"].items()])
+    return lines
+
+
 def _table_iii_rows(summary: dict[str, Any]) -> list[str]:
     rows = [
         [
@@ -287,6 +309,7 @@ def render_report(summary: dict[str, Any], figures: Mapping[str, Path], out_dir:
         lines.append(f"- {rate:.2f} trials per second in the last session")
     lines += ["", "## World-frame camera error per visit (all sources)", ""]
     lines += _distribution_rows(summary)
+    lines += _failures(summary)
     lines += ["", "## Table III metrics (median / 90 %)", "", *_table_iii_rows(summary)]
     lines += _paper(summary)
     lines += _adjusted(summary)

@@ -203,12 +203,38 @@ def budget(rows: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
     return out
 
 
+def failure_summary(rows: Sequence[dict[str, Any]], config: str = ALL) -> dict[str, Any]:
+    """What went wrong in the trials of ``config``: ``kinds``, each failure kind's count over
+    all trials (from ``failure_kinds``); ``trials_with_failures``; and ``not_calibrated``,
+    the visits that gave no calibration, counted by reason (the ``not_calibrated`` text
+    before its first colon), most frequent first."""
+    trials: dict[int, str] = {}
+    reasons: dict[str, int] = {}
+    for r in _select(rows, config):
+        trials.setdefault(r["trial"], r.get("failure_kinds", "") or "")
+        why = r.get("not_calibrated", "") or ""
+        if not r["calibrated"]:
+            reason = why.split(":", 1)[0] or "unknown"
+            reasons[reason] = reasons.get(reason, 0) + 1
+    kinds: dict[str, int] = {}
+    for cell in trials.values():
+        for part in filter(None, (p.strip() for p in cell.split(";"))):
+            kind, _, count = part.rpartition(" ")
+            kinds[kind] = kinds.get(kind, 0) + int(count)
+    return {
+        "kinds": dict(sorted(kinds.items(), key=lambda kv: (-kv[1], kv[0]))),
+        "trials_with_failures": sum(1 for cell in trials.values() if cell),
+        "not_calibrated": dict(sorted(reasons.items(), key=lambda kv: (-kv[1], kv[0]))),
+    }
+
+
 def summarise(rows: Sequence[dict[str, Any]], settings: dict[str, Any]) -> dict[str, Any]:
     """Everything ``summary.json`` holds."""
     return {
         **settings,
         "trials_done": len({r["trial"] for r in rows if r["config"] == ALL}),
         "visits": visit_summary(rows),
+        "failures": failure_summary(rows),
         "parent_final": parent_summary(rows),
         "budget": budget(rows),
         "paper": against_paper(rows) if applies(rows) else None,

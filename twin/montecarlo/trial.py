@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,6 +28,7 @@ COLUMNS: dict[str, type] = {
     "camera": str,
     "visit": int,
     "calibrated": int,
+    "not_calibrated": str,
     "distance_travelled_m": float,
     "points": int,
     "position_error_mm": float,
@@ -54,8 +56,12 @@ COLUMNS: dict[str, type] = {
     "parent_predicted_sz_mm": float,
     "parent_distance_m": float,
     "failures": int,
+    "failure_kinds": str,
 }
-"""The trial table's columns and their types (lengths in the unit their names say)."""
+"""The trial table's columns and their types (lengths in the unit their names say).
+``not_calibrated``: why the visit gave no calibration (empty where it did);
+``failure_kinds``: the trial's failures by kind, ``kind count; ...`` (the batch fidelity
+counts its failed consistency tests and missed LEDs without kinds: empty)."""
 
 
 @dataclass(frozen=True)
@@ -189,11 +195,18 @@ def adjusted_entry_columns(entry: dict[str, Any] | None) -> dict[str, float]:
     )
 
 
+def failure_kinds(failures: Mapping[str, int]) -> str:
+    """A trial's failures by kind as one cell: ``kind count; ...`` in the order of the
+    kinds' names (empty where there are none)."""
+    return "; ".join(f"{kind} {count}" for kind, count in sorted(failures.items()) if count)
+
+
 def parent_columns(
-    error_m: Any, std_m: Any, distance_m: float, failures: int
-) -> dict[str, float | int]:
+    error_m: Any, std_m: Any, distance_m: float, failures: int, kinds: str = ""
+) -> dict[str, float | int | str]:
     """The columns every row of a trial shares: the parent's final error (3,) and its
-    predicted standard deviations (3,), m, its travel, m, and the trial's failures."""
+    predicted standard deviations (3,), m, its travel, m, and the trial's failures (their
+    number, and ``kinds``: :func:`failure_kinds`)."""
     return {
         "parent_final_dx_mm": mm(error_m[0]),
         "parent_final_dy_mm": mm(error_m[1]),
@@ -203,7 +216,16 @@ def parent_columns(
         "parent_predicted_sz_mm": mm(std_m[2]),
         "parent_distance_m": float(distance_m),
         "failures": int(failures),
+        "failure_kinds": kinds,
     }
+
+
+def _why_not(skipped: Mapping[str, Any] | None) -> str:
+    """Why a planned visit gave no calibration, from its ``skipped_visits`` entry."""
+    if skipped is None:
+        return "not_reached: the campaign ended before the visit"
+    reason, message = skipped["reason"], skipped.get("message")
+    return f"{reason}: {message}" if message else reason
 
 
 def trial_rows(
@@ -216,7 +238,11 @@ def trial_rows(
     err = final.error_m if final is not None else np.full(3, np.nan)
     std = np.sqrt(np.diag(final.covariance_m2)) if final is not None else np.full(3, np.nan)
     distance = final.distance_travelled_m if final is not None else math.nan
-    trial_level = parent_columns(err, std, distance, sum(results["failures"].values()))
+    failures = results["failures"]
+    trial_level = parent_columns(
+        err, std, distance, sum(failures.values()), failure_kinds(failures)
+    )
+    skipped = {(v["camera"], v["visit"]): v for v in results.get("skipped_visits", [])}
     rows = []
     for (camera, visit), _ in planned_visits(spec.scenario):
         c = made.get((camera, visit))
@@ -228,6 +254,7 @@ def trial_rows(
             {
                 **row_key(spec, camera, visit),
                 "calibrated": int(c is not None),
+                "not_calibrated": "" if c else _why_not(skipped.get((camera, visit))),
                 "distance_travelled_m": c["distance_travelled_m"] if c else math.nan,
                 "points": c["points"] if c else 0,
                 "position_error_mm": _get(truth, "position_error_mm"),
