@@ -28,6 +28,7 @@ import yaml
 from calib.camera import TsaiCamera
 from calib.camera_covariance import CAMERA_PARAMETERS, check_camera_covariance
 from calib.io.atomic import atomic_file
+from calib.io.text import NotText, read_text, yaml_load
 from calib.opencv_camera import OpenCVCamera, tsai2opencv
 
 Camera = TsaiCamera | OpenCVCamera
@@ -166,13 +167,13 @@ def _write_ros_yaml(path: Path, camera: Camera, name: str) -> None:
 
 def _read_ros_yaml(path: Path) -> OpenCVCamera:
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = yaml_load(read_text(path))
         size = (int(doc["image_width"]), int(doc["image_height"]))
         k = np.asarray(doc["camera_matrix"]["data"], dtype=float).reshape(3, 3)
         d = np.asarray(doc["distortion_coefficients"]["data"], dtype=float)
     except KeyError as exc:
         raise ValueError(f"{path}: missing key {exc.args[0]!r} of a ROS camera_info") from None
-    except (TypeError, yaml.YAMLError) as exc:
+    except (TypeError, NotText, yaml.YAMLError) as exc:
         raise ValueError(f"{path}: not a ROS camera_info YAML file ({exc})") from None
     return OpenCVCamera(k, d, np.eye(3), np.zeros(3), size)
 

@@ -39,6 +39,7 @@ import shapely
 import yaml
 from shapely.geometry import Polygon
 
+from calib.io.text import NotText, read_text, yaml_load
 from twin.planning.floor_map import FloorMap, MapError, MapObstacle
 from twin.planning.maps import check_keep, select_regions
 
@@ -111,11 +112,13 @@ def read_occupancy_grid(path: str | Path) -> OccupancyGrid:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except OSError as exc:
         raise MapError(path, f"cannot read the map YAML: {exc.strerror or exc}") from None
+    except NotText as exc:
+        raise MapError(path, f"cannot read the map YAML: {exc}") from None
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml_load(text)
     except yaml.YAMLError as exc:
         raise MapError(path, f"not valid YAML: {exc}") from None
     if not isinstance(doc, dict):

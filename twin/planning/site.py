@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from shapely.geometry import LineString, Point
 from shapely.geometry.base import BaseGeometry
 
+from calib.io.text import read_text, yaml_load
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
 from twin.planning.floor_map import FloorMap, MapError
 from twin.planning.frames import MapPose
@@ -119,8 +120,8 @@ def read_cameras(path: str | Path) -> list[dict[str, Any]]:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-        raw: Any = tomllib.loads(text) if path.suffix == ".toml" else yaml.safe_load(text)
+        text = read_text(path)
+        raw: Any = tomllib.loads(text) if path.suffix == ".toml" else yaml_load(text)
     except (OSError, ValueError, yaml.YAMLError) as exc:
         raise MapError(path, f"cannot read the cameras: {exc}") from None
     if isinstance(raw, Mapping):

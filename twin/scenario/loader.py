@@ -15,6 +15,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
+from calib.io.text import NotText, read_text, yaml_load
 from twin.scenario.cross_checks import check_scenario
 from twin.scenario.errors import ScenarioError, ScenarioIssue
 from twin.scenario.schema import Scenario
@@ -76,14 +77,14 @@ def read_mapping(path: Path, error: type[ScenarioError] = ScenarioError) -> Mapp
             does not hold a table.
     """
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
     except OSError as exc:
         raise error(path, [ScenarioIssue("<file>", str(exc), None, "a readable file")]) from None
+    except NotText as exc:
+        raise error(path, [ScenarioIssue("<file>", str(exc), None, "UTF-8 text")]) from None
     try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            raw = yaml.safe_load(text)
-        else:
-            raw = tomllib.loads(text)
+        yaml_file = path.suffix.lower() in (".yaml", ".yml")
+        raw = yaml_load(text) if yaml_file else tomllib.loads(text)
     except (tomllib.TOMLDecodeError, yaml.YAMLError) as exc:
         raise error(
             path, [ScenarioIssue("<syntax>", str(exc), None, "valid TOML or YAML")]

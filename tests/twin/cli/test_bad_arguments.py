@@ -97,3 +97,12 @@ def test_montecarlo_refuses_resume_and_overwrite_together(tmp_path, capsys):
         main([*COMMANDS["montecarlo"], str(tmp_path / "o"), "--resume", "--overwrite"])
     assert exit_.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["run", "scene", "montecarlo"])
+def test_a_scenario_that_is_not_text_is_refused_in_one_line(command, tmp_path, capsys):
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(Path(SMOKE).read_bytes() + b"# caf\xe9\n")
+    args = [a if a != SMOKE else str(bad) for a in COMMANDS[command]]
+    _refused([*args, str(tmp_path / "out")], capsys, "is not UTF-8 text")
+

@@ -328,3 +328,24 @@ def test_bad_camera_sensor_lighting_and_people(tmp_path, anchor, added, key, pro
     new = f"{added}\n{anchor}" if anchor.startswith("[") else f"{anchor}\n{added}"
     issue = _only(_error(variant(tmp_path, "bad", [(anchor, new)])), key)
     assert problem in issue.problem
+
+
+def test_a_file_that_is_not_utf8_is_refused_naming_the_byte(tmp_path):
+    path = variant(tmp_path, "latin1", [])
+    path.write_bytes(path.read_bytes() + b"# caf\xe9\n")
+    issue = _only(_error(path), "<file>")
+    assert "is not UTF-8 text" in issue.problem
+    assert "line" in issue.problem
+
+
+def test_a_byte_order_mark_is_read_past(tmp_path):
+    path = variant(tmp_path, "bom", [])
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert load_scenario(path).name == load_scenario(variant(tmp_path, "plain", [])).name
+
+
+def test_a_yaml_scenario_that_repeats_a_key_is_refused(tmp_path):
+    path = tmp_path / "dup.yaml"
+    path.write_text("name: a\nname: b\n", encoding="utf-8")
+    issue = _only(_error(path), "<syntax>")
+    assert "a second time" in issue.problem
