@@ -43,7 +43,8 @@ BATCH_OMITS = (
     "without it is not used; the stops for accuracy are not planned again from the noisy "
     "estimates; a fix that failed its consistency test is not measured again (such a trial "
     "keeps its estimate and counts a failure)",
-    "the faults of [faults] (scenarios with faults are refused)",
+    "the injected faults of [faults]: lost_lock_rate, hidden_led_rate, unreachable (scenarios "
+    "that set them are refused; a moved camera is modelled: its moved pose is the truth)",
     "the check shots at a child placed earlier (they only matter when it moved)",
     "the tilt of a child on a tilted floor patch (its marker moves in the plane)",
     "the occlusion of an LED by an obstacle or a person (the plan's stops were chosen in "
@@ -104,6 +105,9 @@ def check_batch_scenario(plan_scenario: Any) -> None:
 
     Raises:
         ValueError: a scenario that injects faults (the batch has no faults to inject).
+            A moved camera (``[[faults.moved_cameras]]``) runs: the noise-free plan
+            records the camera where the world holds it, the truth the trials are
+            measured against.
     """
     faults = plan_scenario.faults
     if faults.lost_lock_rate or faults.hidden_led_rate or faults.unreachable:
