@@ -67,12 +67,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="skip the geometric run that predicts each camera's error for the figure",
     )
     p.add_argument("--out", type=Path, required=True, metavar="SITE.toml", help="scenario to write")
-    arguments.add_overwrite(p)
+    arguments.add_overwrite(p, file=True)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan; exit code 0, 2 for bad input."""
+    """Plan; exit code 0, 1 when one geometric run of the plan does not calibrate every
+    camera (the plan is written), 2 for bad input."""
     from twin.planning.floor_map import MapError
     from twin.planning.site_file import write_site
 
@@ -122,4 +123,12 @@ def run(args: argparse.Namespace) -> int:
         f"{plan.pose.y:.2f}) heading {math.degrees(plan.pose.yaw):.1f} deg"
     )
     console.print(f"scenario: {written.path}; figure: {written.figure}")
+    if written.not_calibrated:
+        console.print(
+            "[yellow]warning:[/yellow] one geometric run of the plan does not calibrate "
+            "every camera (the plan is written, to be looked at and edited):"
+        )
+        for cam, why in written.not_calibrated.items():
+            console.print(f"  {cam}: {escape(why)}")
+        return 1
     return 0

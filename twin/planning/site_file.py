@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +29,8 @@ class WrittenSite:
         predicted_mm: each camera's predicted world-frame position error (RMS over its
             visits' best, mm) from one geometric run; empty when not predicted.
         route_length_m: the parent's route, m.
+        not_calibrated: the cameras that geometric run did not calibrate, each with why
+            (the skipped visit's reason and message); empty when not predicted.
     """
 
     path: Path
@@ -37,6 +39,7 @@ class WrittenSite:
     plan: SitePlan
     predicted_mm: dict[str, float]
     route_length_m: float
+    not_calibrated: dict[str, str] = field(default_factory=dict)
 
 
 def write_site(
@@ -87,7 +90,7 @@ def write_site(
         scenario = scenario_from_dict(plan.scenario, file=out)
     except ScenarioError as exc:
         raise MapError(floor.source, f"the planned scenario does not validate: {exc}") from None
-    predicted = predicted_errors(scenario) if predict else {}
+    predicted, missed = predicted_errors(scenario) if predict else ({}, {})
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, _header(map_ref) + tomli_w.dumps(plan.scenario))
     from twin.planning.figure import plan_figure
@@ -95,19 +98,21 @@ def write_site(
     figure = plan_figure(scenario, out.with_suffix(".plan.png"), predicted)
     route = np.asarray(scenario.route.waypoints)
     length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
-    return WrittenSite(out, figure, scenario, plan, predicted, length)
+    return WrittenSite(out, figure, scenario, plan, predicted, length, missed)
 
 
-def predicted_errors(scenario: Scenario) -> dict[str, float]:
+def predicted_errors(scenario: Scenario) -> tuple[dict[str, float], dict[str, str]]:
     """Each camera's predicted world-frame position error, RMS mm, from one geometric run
     of ``scenario`` (the covariance the campaign propagates, :mod:`twin.montecarlo.
-    prediction`); a camera calibrated twice keeps its better visit."""
+    prediction`; a camera calibrated twice keeps its better visit), and why that run
+    calibrated none of a camera's visits (``reason: message`` of its first skipped visit)
+    for each camera it did not calibrate."""
     from twin.montecarlo.prediction import predictions_from_log
     from twin.record import read_log
     from twin.runner import run_scenario
 
     with tempfile.TemporaryDirectory() as tmp:
-        run_scenario(scenario, tmp, fidelity="geometric", report=False, overwrite=True)
+        results = run_scenario(scenario, tmp, fidelity="geometric", report=False, overwrite=True)
         messages = read_log(Path(tmp) / "log.mcap").messages
     pixel = {c.name: scenario.projected_led_px(c.name) for c in scenario.cameras}
     predictions, _ = predictions_from_log(messages, pixel)
@@ -115,7 +120,17 @@ def predicted_errors(scenario: Scenario) -> dict[str, float]:
     for p in predictions:
         mm = 1e3 * p.rms_m
         out[p.camera] = min(out.get(p.camera, mm), mm)
-    return out
+    calibrated = {c["camera"] for c in results["calibrations"]}
+    missed: dict[str, str] = {}
+    for skipped in results["skipped_visits"]:
+        camera = skipped["camera"]
+        if camera not in calibrated and camera not in missed:
+            message = skipped.get("message")
+            missed[camera] = f"{skipped['reason']}: {message}" if message else skipped["reason"]
+    for camera in scenario.cameras:
+        if camera.name not in calibrated and camera.name not in missed:
+            missed[camera.name] = "not visited"
+    return out, missed
 
 
 def _relative(path: Path, folder: Path) -> str:

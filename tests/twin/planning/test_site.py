@@ -297,3 +297,18 @@ def test_the_shipped_hospital_floor_calibrates_all_its_cameras(tmp_path):
     results = run_scenario(sc, tmp_path / "run", fidelity="geometric", report=False)
     assert len(results["calibrations"]) == 30
     assert not results["skipped_visits"]
+
+
+def test_a_camera_the_plans_run_does_not_calibrate_is_named_with_why(tmp_path):
+    # The station cannot be reached (an unreachable goal on it): the geometric run that
+    # predicts the errors calibrates nothing, and says why for the camera.
+    from twin.planning.site_file import predicted_errors
+    from twin.scenario.overrides import with_values
+
+    smoke = load_scenario(Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml")
+    blocked = with_values(smoke, {"faults.unreachable": [[0.5, 0.0]]})
+    predicted, missed = predicted_errors(blocked)
+    assert predicted == {}
+    assert list(missed) == ["cam1"]
+    assert missed["cam1"].startswith("station_unreachable")
+    assert predicted_errors(smoke)[1] == {}
