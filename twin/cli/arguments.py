@@ -65,12 +65,17 @@ def add_strategy(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_overwrite(parser: argparse.ArgumentParser | argparse._MutuallyExclusiveGroup) -> None:
-    """The ``--overwrite`` option of the commands that write a folder of results."""
+def add_overwrite(
+    parser: argparse.ArgumentParser | argparse._MutuallyExclusiveGroup, file: bool = False
+) -> None:
+    """The ``--overwrite`` option of the commands that write a folder of results (``file``:
+    a file)."""
     parser.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace what an earlier run wrote in --out (default: refuse a folder that is "
+        help="replace the file --out names (default: refuse one that exists)"
+        if file
+        else "replace what an earlier run wrote in --out (default: refuse a folder that is "
         "not empty)",
     )
 

@@ -140,6 +140,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         if args.camera is not None or args.at is not None:
             return _error("--camera and --at need --scenario")
+        if not args.images:
+            return _error("give the frames as image files, or --scenario to capture them")
+        missing = [str(path) for path in args.images if not path.is_file()]
+        if missing:
+            return _error(f"no such image file: {', '.join(missing)}")
         if len(args.images) != sequence.n_frames:
             return _error(
                 f"the {args.sequence} sequence of {args.leds} LEDs has {sequence.n_frames} "

@@ -8,7 +8,7 @@ from pathlib import Path
 from rich.console import Console
 
 from twin.cli.scene import load_or_report
-from twin.outputs import check_file_target
+from twin.outputs import OutputError, check_file_target
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,6 +47,8 @@ def run(args: argparse.Namespace) -> int:
     if sc is None:
         return 2
     check_file_target(args.out, "--out")
+    if args.out.suffix.lower() != ".png":
+        raise OutputError(f"--out {args.out}: the image is written as PNG; give a .png file")
     names = [c.name for c in sc.cameras]
     if args.camera not in names:
         Console(stderr=True, highlight=False).print(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rich import box
 from rich.console import Console
 from rich.live import Live
 from rich.markup import escape
@@ -163,10 +164,15 @@ def _run_on_rig(
 def print_results(results: dict, console: Console) -> None:
     """The calibrations as a Table III-like table, and the failures."""
     how = f"{results['fidelity']}, {results.get('strategy') or 'paper'} strategy"
-    table = Table(title=f"{results['scenario']} ({how}, seed {results['seed']})")
-    for col in ("camera", "visit", "travel [m]", "points"):
+    # Short headings and the units in the caption: the table fits 80 columns (a log, CI).
+    table = Table(
+        title=f"{results['scenario']} ({how}, seed {results['seed']})",
+        caption="travel in m; 3D errors and the true position error in mm",
+        box=box.SIMPLE_HEAVY,
+    )
+    for col in ("camera", "visit", "travel", "points", "world px", "world 3D", "local px"):
         table.add_column(col, justify="right")
-    for col in ("world px", "world 3D [mm]", "local px", "local 3D [mm]", "position err [mm]"):
+    for col in ("local 3D", "true err"):
         table.add_column(col, justify="right")
     for c in results["calibrations"]:
         w, loc, truth = c["errors"]["world"], c["errors"]["local"], c["truth"]
@@ -208,9 +214,11 @@ def print_adjustment(results: dict, console: Console) -> None:
         return
     table = Table(
         title=f"global adjustment ({info['cameras']} cameras; chi2/dof "
-        f"{info['variance_factor']:.2f}; measured twice: {'; '.join(info['redundancy'])})"
+        f"{info['variance_factor']:.2f}; measured twice: {'; '.join(info['redundancy'])})",
+        caption="errors in mm",
+        box=box.SIMPLE_HEAVY,
     )
-    for col in ("camera", "visit", "world 3D [mm]", "adjusted", "position err [mm]", "adjusted"):
+    for col in ("camera", "visit", "world 3D", "adjusted", "true err", "adjusted"):
         table.add_column(col, justify="right")
     for c, a in zip(results["calibrations"], results["adjusted_calibrations"], strict=False):
         cells = []

@@ -50,7 +50,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--episodes", type=arguments.positive_int, default=20, help="episodes per policy (20)"
     )
-    p.add_argument("--seed", type=arguments.seed, default=0, help="episode k's seed is SEED + k")
+    p.add_argument(
+        "--seed", type=arguments.seed, default=0, help="episode k's seed is SEED + k (default: 0)"
+    )
     p.add_argument(
         "--budget",
         type=arguments.positive_float,

@@ -106,3 +106,8 @@ def test_a_scenario_that_is_not_text_is_refused_in_one_line(command, tmp_path, c
     args = [a if a != SMOKE else str(bad) for a in COMMANDS[command]]
     _refused([*args, str(tmp_path / "out")], capsys, "is not UTF-8 text")
 
+
+def test_render_refuses_an_image_name_that_is_not_png(tmp_path, capsys):
+    out = tmp_path / "view.jpg"
+    _refused([*COMMANDS["render"], str(out)], capsys, "--out", "give a .png file")
+    assert not out.exists()

@@ -98,7 +98,10 @@ def test_bad_inputs(tmp_path, capsys):
     cv2.imwrite(str(small), np.zeros((10, 30, 3), np.uint8))
     cases = [
         (["detect", str(img)], "has 6 frames; got 1 image file"),
-        (["detect", *[str(img)] * 5, str(tmp_path / "missing.png")], "cannot read"),
+        (["detect", *[str(img)] * 5, str(tmp_path / "missing.png")], "no such image file"),
+        (["detect", str(tmp_path / "none_*.png")], "no such image file"),
+        (["detect"], "give the frames as image files, or --scenario"),
+        (["detect", *[str(img)] * 5, str(tmp_path)], "no such image file"),
         (["detect", *[str(img)] * 5, str(small)], "differ in size"),
         (["detect", str(img), "--scenario", str(LED_RANGE), "--camera", "far"], "not both"),
         (["detect", "--scenario", str(LED_RANGE), "--camera", "cam9"], "expected one of near, far"),
