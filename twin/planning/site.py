@@ -53,6 +53,11 @@ STATION_CLEARANCE = 1.5
 the parent there (the formation's sideways offset, a child's radius, and a margin); where
 no floor is that wide, a station keeps the route's clearance."""
 
+ROUTE_CLEARANCES = (STATION_CLEARANCE, 1.25, 1.0, 0.85)
+"""Clearances the route tries, widest first, m: where the start stands 1 m from a wall, say,
+a route 1.5 m clear cannot leave it, and one 1 m clear still keeps the formation's lines of
+sight off the corners that one at the parent's own clearance grazes."""
+
 STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
 ``calibration.min_visible_fraction``)."""
@@ -221,7 +226,7 @@ def plan_site(
     boxed = boxed_space(floor, pose, resolution)
     cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
-    graph = _route_graph(pose.geometry2world(floor.reachable(STATION_CLEARANCE)), reach_w, stations)
+    graph = _route_graph(floor, pose, reach_w, stations)
     points = [np.zeros(2), *(stations[c].xy for c in stations)]
     keys = list(stations)
     try:
@@ -262,12 +267,17 @@ def plan_site(
 
 
 def _route_graph(
-    roomy: BaseGeometry, reachable: BaseGeometry, stations: Mapping[str, Station]
+    floor: FloorMap, pose: MapPose, reachable: BaseGeometry, stations: Mapping[str, Station]
 ) -> RouteGraph:
-    """The graph the route is planned on: the roomy floor (the route keeps to the middle of
-    corridors, where the instrument sees the children around a corner) when it holds the
-    start and every station in one piece, else every floor the parent can reach."""
-    if not roomy.is_empty:
+    """The graph the route is planned on: the floor shrunk by the widest of
+    :data:`ROUTE_CLEARANCES` that holds the start and every station in one piece (the
+    route keeps to the middle of corridors, where the instrument sees the children around
+    a corner, and clear of the corners it turns round), else every floor the parent can
+    reach."""
+    for clearance in ROUTE_CLEARANCES:
+        roomy = pose.geometry2world(floor.reachable(clearance))
+        if roomy.is_empty:
+            continue
         graph = RouteGraph(roomy)
         regions = {graph.region_of(np.zeros(2))}
         regions |= {graph.region_of(st.xy) for st in stations.values()}

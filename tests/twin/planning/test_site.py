@@ -312,3 +312,21 @@ def test_a_camera_the_plans_run_does_not_calibrate_is_named_with_why(tmp_path):
     assert list(missed) == ["cam1"]
     assert missed["cam1"].startswith("station_unreachable")
     assert predicted_errors(smoke)[1] == {}
+
+
+def test_a_start_near_a_wall_keeps_the_route_off_the_corners(tmp_path):
+    # The generated three-camera floor: the start stands 1 m from a wall, so no route 1.5 m
+    # clear leaves it. A route at the parent's own clearance grazed a corner where no
+    # formation kept its lines of sight (the campaign aborted before cam3); the route 1 m
+    # clear calibrates every camera.
+    from twin.planning.maps import load_map
+    from twin.planning.sample_floor import write_floor
+    from twin.planning.site import plan_site, read_cameras
+    from twin.planning.site_file import predicted_errors
+    from twin.scenario.loader import scenario_from_dict
+
+    map_yaml, cameras = write_floor(tmp_path / "floor", 3)
+    plan = plan_site(load_map(map_yaml), read_cameras(cameras))
+    predicted, missed = predicted_errors(scenario_from_dict(plan.scenario))
+    assert missed == {}
+    assert sorted(predicted) == ["cam1", "cam2", "cam3"]
