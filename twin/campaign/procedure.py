@@ -230,9 +230,13 @@ class Campaign:
         for camera in cameras:
             self.journal.stage("reference", camera, 0, f"reference data set of {camera}")
             plan = yield DataStops(camera, "reference", self.settings.reference_points)
-            pts, pix, _ = self.collection.collect(
-                camera, "reference", 0, self.settings.reference_points, plan
-            )
+            try:
+                pts, pix, _ = self.collection.collect(
+                    camera, "reference", 0, self.settings.reference_points, plan
+                )
+            except CampaignAborted as exc:
+                self.journal.failure("campaign_aborted", str(exc))
+                return self._end()
             if len(pts):
                 self.references[camera] = (pts, pix)
         while True:
@@ -241,6 +245,10 @@ class Campaign:
                 break
             if not (yield from self._go_to(goal)):
                 break
+        return self._end()
+
+    def _end(self) -> CampaignOutcome:
+        """The campaign is over: what it gave."""
         if self.travel.control_points is not None:
             self.travel.control_points.report_unseen(self.rig.parent.name)
         self.journal.stage("done")
@@ -278,7 +286,14 @@ class Campaign:
             return True
         self.journal.stage("station", goal.camera, goal.number, f"calibrating {goal.camera}")
         plan: StopPlan = yield DataStops(goal.camera, "visit", self.settings.station_points)
-        self.collection.calibrate(goal.camera, goal.number, goal.station, plan)
+        try:
+            self.collection.calibrate(goal.camera, goal.number, goal.station, plan)
+        except CampaignAborted as exc:
+            self.journal.failure("campaign_aborted", str(exc))
+            self.journal.skipped(
+                goal.camera, goal.number, goal.station, "campaign_aborted", str(exc)
+            )
+            return False
         return True
 
     def _travel(self, goal: Visit | Return) -> Generator[Question, Any, bool]:

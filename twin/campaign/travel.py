@@ -36,6 +36,7 @@ from twin.hal.rig import Rig
 from twin.instruments.errors import InconsistentChildrenError, TiltOutOfRangeError
 from twin.instruments.marker import MarkerAssembly
 from twin.localization.observation import ChildObservation
+from twin.localization.planar import world2level
 from twin.localization.pose import ParentPose
 from twin.localization.sequence import CpsSequence
 from twin.scenario.schema import Space
@@ -60,6 +61,16 @@ of the instrument's aim, or behind a corner it was planned clear of."""
 TRACK_STEP_M = 10.0
 """A tracked drive stops about every this many metres, m, to be measured, and the child's
 odometry is corrected from its marker's measured pose."""
+
+BUMP_REACH = 0.3
+"""A child that stopped against something within the two robots' radii and this of the
+parent (m) may have pushed the parent (:meth:`Travel.check_station`)."""
+
+STATION_GATE_M = 0.015
+"""How far a standing child may be measured from where the parent's CPS state expects it
+before the station counts as moved, m. The parent measured it from this station (at its
+fix, or placing it): the two agree to the shots' noise, a few millimetres; a push of the
+parent that turns it 10 mrad moves a child 3 m away by 30 mm."""
 
 FIX_ATTEMPTS = 2 + len(SIDESTEPS)
 """Attempts at the parent's fix: twice where it stopped (starting from either child), then
@@ -201,23 +212,65 @@ class Travel:
             result = self._drive(base, corner, yaw)
             if not result.reached:
                 if result.status in (DriveStatus.COLLISION, DriveStatus.TIMEOUT):
-                    self.relocate(child)
+                    seen = self.relocate(child)
+                    if result.status is DriveStatus.COLLISION:
+                        self.check_station(child, seen)
                 return result.message or result.status.value
         return ""
+
+    def check_station(self, child: str, seen: ChildObservation | None) -> None:
+        """A child stopped against something (``seen``: where the parent measured it then,
+        or None): if that was beside the standing parent, it may have pushed the parent off
+        its station, and every point measured after it would be in another frame. The
+        parent measures the other children and compares each with where its CPS state
+        expects it; one farther than :data:`STATION_GATE_M` means the station moved.
+
+        Raises:
+            CampaignAborted: the station moved (the parent cannot fix its pose again from
+                children standing where it knows them).
+        """
+        parent = self.cps.parent
+        if seen is not None:
+            reach = float(np.linalg.norm(seen.point_level[:2]))
+        else:
+            reach = float(np.linalg.norm(self.child_pose(child)[:2] - parent.translation[:2]))
+        if reach > PARENT_BODY + CHILD_BODY + BUMP_REACH:
+            return
+        for other in self.children:
+            if other == child:
+                continue
+            obs = self.measure(other)
+            if obs is None:
+                continue
+            expected = world2level(
+                self.cps.child_position(other)[0], parent.yaw, parent.translation
+            )
+            off = float(np.linalg.norm(obs.point_level - expected))
+            if off > STATION_GATE_M:
+                message = (
+                    f"{child} stopped against the parent, and {other} is now {1e3 * off:.0f} mm "
+                    "off where the parent expects it: the station moved"
+                )
+                self.journal.failure("station_moved", message, robot=self.rig.parent.name)
+                raise CampaignAborted(message)
+            self.journal.event("station_checked", f"{other} where expected after a bump", other)
+            return
 
     def relocate(
         self,
         child: str,
         event: str = "child_relocated",
         message: str = "measured where its drive ended",
-    ) -> None:
+    ) -> ChildObservation | None:
         """Measure a child where a drive left it (the parent stands) and correct its
-        odometry, recording ``event``; a child the parent cannot see stays as it is."""
+        odometry, recording ``event``; a child the parent cannot see stays as it is. Its
+        observation, or None."""
         obs = self.measure(child)
         if obs is None:
-            return
+            return None
         self.journal.event(event, message, child)
         self._correct_child_pose(child, obs, self.cps.parent)
+        return obs
 
     def _showing(self, xy: NDArray[np.float64], heading: float) -> float:
         """The heading nearest ``heading`` (rad) at which a child at ``xy`` shows all its

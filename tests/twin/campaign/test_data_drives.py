@@ -9,9 +9,10 @@ import itertools
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
-from twin.campaign import Campaign
+from twin.campaign import Campaign, CampaignAborted
 from twin.hal.readings import DriveStatus
 from twin.scenario import load_scenario
 from twin.sim.rig import build_sim_rig
@@ -23,10 +24,13 @@ SMOKE = Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml"
 class _Events:
     def __init__(self) -> None:
         self.events: list[str] = []
+        self.failures: list[str] = []
 
     def record(self, topic: str, record: object, timestamp: float) -> None:
         if topic == "/campaign/event":
             self.events.append(record.kind)  # type: ignore[attr-defined]
+        elif topic == "/campaign/failure":
+            self.failures.append(record.kind)  # type: ignore[attr-defined]
 
 
 def _rig():
@@ -107,3 +111,68 @@ def test_a_child_stopped_by_a_collision_is_measured_where_it_stands(monkeypatch)
     assert "child_relocated" in events.events
     assert np.linalg.norm(believed - truth) < 0.01  # the marker's pose, measured at ~3 m
     assert np.linalg.norm(believed - stop) > 1.0
+
+
+def _bump(sim, child, push_parent: bool):
+    """A drive_to for ``child`` that stops it 0.8 m beside the parent against it (a
+    collision), turning the parent 20 mrad about its centre where ``push_parent``."""
+    driving = child.drive_to
+
+    def drive(goal_xy, goal_yaw=None):
+        result = driving(np.array([0.0, 0.8]), 0.0)
+        if push_parent:
+            x, y, yaw = sim.frame.pose(sim.world.robot_pose("parent"))
+            mj = sim.frame.pose_to_mujoco(np.array([x + 0.01, y, yaw + 0.02]))
+            sim.world.place("parent", mj[:2], float(mj[2]), hold_others=True)
+        return dataclasses.replace(
+            result, status=DriveStatus.COLLISION, message="touched something at t = 1.0 s"
+        )
+
+    return drive
+
+
+def test_a_parent_pushed_off_its_station_ends_the_campaign_there(monkeypatch):
+    sim, campaign, events = _rig()
+    travel = campaign.travel
+    assert travel.place_child("child2") is not None  # the anchor, 2.1 m from the parent
+    child = sim.rig.children["child1"]
+    monkeypatch.setattr(child, "drive_to", _bump(sim, child, push_parent=True))
+    with pytest.raises(CampaignAborted, match="the station moved"):
+        travel.drive_clear("child1", np.array([3.0, 1.0]), 0.0)
+    sim.close()
+    # Beside the parent, inside the instrument's least distance: it is judged near the
+    # parent from its odometry; child2, 2.1 m off, is measured about 40 mm from where it
+    # stood.
+    assert "station_moved" in events.failures
+
+
+def test_a_bump_that_left_the_parent_where_it_stood_is_checked_and_passed(monkeypatch):
+    sim, campaign, events = _rig()
+    travel = campaign.travel
+    assert travel.place_child("child2") is not None
+    child = sim.rig.children["child1"]
+    monkeypatch.setattr(child, "drive_to", _bump(sim, child, push_parent=False))
+    why = travel.drive_clear("child1", np.array([3.0, 1.0]), 0.0)
+    sim.close()
+    assert why == "touched something at t = 1.0 s"
+    assert "station_checked" in events.events
+    assert "station_moved" not in events.failures
+
+
+@pytest.mark.parametrize("dataset", ["reference", "visit"])
+def test_a_station_that_moved_during_a_data_set_ends_the_campaign_cleanly(dataset, monkeypatch):
+    sim, campaign, _ = _rig()
+    collecting = campaign.collection.collect
+
+    def collect(camera, name, *args, **kwargs):
+        if name == dataset:
+            raise CampaignAborted("child1 stopped against the parent: the station moved")
+        return collecting(camera, name, *args, **kwargs)
+
+    monkeypatch.setattr(campaign.collection, "collect", collect)
+    outcome = campaign.run()
+    sim.close()
+    assert outcome.failures["campaign_aborted"] == 1
+    assert outcome.calibrations == []
+    if dataset == "visit":
+        assert [s.reason for s in outcome.skipped] == ["campaign_aborted"]
