@@ -22,6 +22,7 @@ from calib.camera import TsaiCamera
 from calib.camera_batch import TsaiCameras
 from calib.metrics_batch import pose_errors
 from calib.tsai import tsai_from_vector, tsai_vector
+from twin.campaign.check.consistency import DEFAULT_FALSE_ALARM_RATE
 from twin.localization.adjustment import NothingToAdjustError, adjust_network
 from twin.localization.network import NetworkBuilder
 
@@ -154,6 +155,8 @@ def adjust_trials(
             adjusted = adjust_network(builder.build())
         except (NothingToAdjustError, ValueError, RuntimeError, np.linalg.LinAlgError):
             continue  # nothing measured twice, or a network the solver cannot solve: NaN
+        # A network that fails the global test scales its covariances (as a run's does).
+        scale = 1.0 if adjusted.passes(DEFAULT_FALSE_ALARM_RATE) else adjusted.variance_factor
         for (camera, visit), _ in groups.items():
             if (camera, visit) not in out:
                 continue
@@ -165,5 +168,5 @@ def adjust_trials(
             v.position_offset[k] = cam.position - truth.position
             v.position_error[k] = errors.position_m[0]
             v.rotation_error[k] = errors.rotation_rad[0]
-            v.predicted[k] = np.sqrt(np.trace(adjusted.camera_covariances[c][8:, 8:]))
+            v.predicted[k] = np.sqrt(scale * np.trace(adjusted.camera_covariances[c][8:, 8:]))
     return out

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from calib.io.camera_files import camera_from_dict
 from calib.rotation import rot_z
 from calib.tsai import TSAI_PARAMETERS, tsai_from_vector, tsai_reported
+from twin.campaign.check.consistency import DEFAULT_FALSE_ALARM_RATE
 from twin.campaign.log_results import (
     calibration_entry,
     reference_sets,
@@ -114,6 +115,11 @@ def adjusted_results(
         if m.topic == TRUTH_CAMERA
     }
     records = [m.data for m in messages if m.topic == CALIBRATION]
+    # The global test: a chi-square beyond what the stated noise allows means an error the
+    # weights leave out (a marker surveyed worse than stated, say); the covariances are
+    # then scaled by the a-posteriori variance factor, as a surveyor's adjustment does.
+    consistent = adjusted.passes(DEFAULT_FALSE_ALARM_RATE)
+    scale = 1.0 if consistent else adjusted.variance_factor
     entries = []
     first: dict[str, NDArray] = {}
     last: dict[str, NDArray] = {}
@@ -121,7 +127,7 @@ def adjusted_results(
         c = index.camera_of(rec["camera"], int(rec["visit"]), cameras)
         size = tuple(int(v) for v in network.image_sizes[c])
         camera = tsai_from_vector(adjusted.cameras[c], size)
-        _, cov = tsai_reported(adjusted.cameras[c], adjusted.camera_covariances[c], size)
+        _, cov = tsai_reported(adjusted.cameras[c], scale * adjusted.camera_covariances[c], size)
         std = dict(zip(TSAI_PARAMETERS, np.sqrt(np.maximum(np.diag(cov), 0.0)), strict=True))
         _, _, xy = visit_points(points, rec["camera"], int(rec["visit"]), int(rec["points"]))
         pts, pix = _adjusted_points(network, adjusted, stops)
@@ -140,12 +146,22 @@ def adjusted_results(
         "adjustment": {
             "status": "adjusted",
             "message": f"adjusted {len(network.stations)} stations and "
-            f"{len(network.cameras)} cameras together",
+            f"{len(network.cameras)} cameras together"
+            + (
+                ""
+                if consistent
+                else f"; chi2/dof {adjusted.variance_factor:.2f} over {adjusted.dof} degrees "
+                "of freedom fails the global test (false-alarm rate "
+                f"{DEFAULT_FALSE_ALARM_RATE:g}): the measurements disagree more than their "
+                "stated noise allows, and the adjusted standard deviations are scaled by it"
+            ),
             "cameras": cameras,
             "redundancy": list(adjusted.redundancy),
             "chi2": adjusted.chi2,
             "dof": adjusted.dof,
             "variance_factor": adjusted.variance_factor,
+            "consistent": consistent,
+            "covariance_scale": scale,
             "unknowns": int(
                 4 * (len(network.stations) - 1)
                 + 3 * int((~network.known_targets).sum())

@@ -230,3 +230,5 @@ def print_adjustment(results: dict, console: Console) -> None:
             cells.append("-" if truth is None else f"{truth['position_error_mm']:.1f}")
         table.add_row(c["camera"], str(c["visit"]), cells[0], cells[1], cells[2], cells[3])
     console.print(table)
+    if info.get("consistent") is False:
+        console.print(f"[yellow]warning:[/yellow] global adjustment: {escape(info['message'])}")

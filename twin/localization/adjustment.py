@@ -40,6 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy.sparse.linalg import splu
+from scipy.stats import chi2 as chi2_dist
 
 from calib.rotation import rot_z
 from calib.tsai import N_TSAI, tsai_pixels_and_jacobian
@@ -79,6 +80,12 @@ class AdjustedNetwork:
     def variance_factor(self) -> float:
         """chi2 / dof: about 1 when the stated noise is right."""
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
+
+    def passes(self, false_alarm_rate: float) -> bool:
+        """The global test: whether chi2 lies below the ``1 - false_alarm_rate`` quantile
+        of the chi-square distribution with ``dof`` degrees of freedom (what the stated
+        noise allows). A network with no redundancy passes."""
+        return self.dof <= 0 or float(chi2_dist.sf(self.chi2, self.dof)) >= false_alarm_rate
 
 
 class _Layout:

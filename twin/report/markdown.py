@@ -466,6 +466,15 @@ def _adjustment(results: Results) -> list[str]:
         f"{fmt(info.get('variance_factor'))} (about 1 when the stated noise is right).",
         "",
     ]
+    if info.get("consistent") is False:
+        lines[-1:-1] = [
+            "",
+            f"**The global test fails**: chi-square {fmt(info.get('chi2'))} over "
+            f"{info.get('dof')} degrees of freedom is more than the stated noise allows. An "
+            "error the weights leave out is in the data (a marker surveyed worse than stated, "
+            "a station that moved); the adjusted standard deviations below are scaled by "
+            f"chi-square per degree of freedom ({fmt(info.get('covariance_scale'))}).",
+        ]
     rows = []
     adjusted = {
         visit_key(e): e

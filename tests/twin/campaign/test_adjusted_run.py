@@ -132,3 +132,30 @@ def test_a_network_the_solver_cannot_solve_leaves_the_run_its_sequential_results
     assert result["adjustment"]["status"] == "failed"
     assert "Singular matrix" in result["adjustment"]["message"]
     assert result["adjusted_calibrations"] == []
+
+
+def test_an_adjustment_that_fails_the_global_test_says_so_and_scales_its_stds(run):
+    # Weighed with a pixel noise ten times smaller than the simulated one, the pixels
+    # disagree far more than stated: chi2/dof near 36 fails the global test, which says
+    # so, and the adjusted standard deviations grow by sqrt(chi2/dof).
+    sc, _, out = run
+    messages = read_log(out / "log.mcap").messages
+    settings = adjustment_settings(sc)
+    stated = adjusted_results(messages, **settings)
+    tight = {
+        **settings,
+        "pixel_noise_px": {k: v / 10 for k, v in settings["pixel_noise_px"].items()},
+    }
+    wrong = adjusted_results(messages, **tight)
+    ok, bad = stated["adjustment"], wrong["adjustment"]
+    assert ok["consistent"] is True
+    assert ok["covariance_scale"] == 1.0
+    assert bad["consistent"] is False
+    assert bad["variance_factor"] > 10
+    assert bad["covariance_scale"] == bad["variance_factor"]
+    assert "fails the global test" in bad["message"]
+    for a, b in zip(stated["adjusted_calibrations"], wrong["adjusted_calibrations"], strict=True):
+        ratio = np.array([b["std"][k] / a["std"][k] for k in "xyz"])
+        # Unscaled, the wrong weights give standard deviations about half the honest ones
+        # (0.4 to 0.6 of them here: the stations' part stays); scaled, they are no smaller.
+        assert np.all(ratio > 0.9), ratio
