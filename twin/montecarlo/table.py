@@ -58,6 +58,12 @@ def read_table(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
         return []
     header = next(csv.reader([lines[0]]))
     if header != list(COLUMNS):
+        missing = [c for c in COLUMNS if c not in header]
+        if header[:3] == list(COLUMNS)[:3] and missing:
+            raise ValueError(
+                f"{path}: a trial table of an earlier version, without the columns "
+                f"{', '.join(missing)}: start the run again with --overwrite"
+            )
         raise ValueError(f"{path}: not a trial table (header {header[:3]}...)")
     rows = []
     for number, fields in enumerate(csv.reader(lines[1:]), start=2):

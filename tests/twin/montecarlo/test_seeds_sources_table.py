@@ -165,6 +165,11 @@ def test_a_file_that_is_not_a_trial_table_is_refused(tmp_path):
     path.write_text(",".join(COLUMNS) + "\n" + "1,2\n")
     with pytest.raises(ValueError, match=r"t\.csv:2"):
         read_table(path)
+    # An earlier version's table (fewer columns) says so, and what to do.
+    older = [c for c in COLUMNS if c not in ("not_calibrated", "failure_kinds")]
+    path.write_text(",".join(older) + "\n")
+    with pytest.raises(ValueError, match=r"earlier version.*not_calibrated.*--overwrite"):
+        read_table(path)
 
 
 def test_rows_sort_by_configuration_then_trial_keeping_visit_order():
