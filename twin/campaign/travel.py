@@ -223,7 +223,9 @@ class Travel:
         or None): if that was beside the standing parent, it may have pushed the parent off
         its station, and every point measured after it would be in another frame. The
         parent measures the other children and compares each with where its CPS state
-        expects it; one farther than :data:`STATION_GATE_M` means the station moved.
+        expects it; one farther than :data:`STATION_GATE_M` means the station moved (or
+        that child was pushed too: from one reference the two cannot be told apart, and
+        either way the points measured from here can no longer be trusted).
 
         Raises:
             CampaignAborted: the station moved (the parent cannot fix its pose again from
@@ -249,7 +251,7 @@ class Travel:
             if off > STATION_GATE_M:
                 message = (
                     f"{child} stopped against the parent, and {other} is now {1e3 * off:.0f} mm "
-                    "off where the parent expects it: the station moved"
+                    "off where the parent expects it: the station moved (or that child did)"
                 )
                 self.journal.failure("station_moved", message, robot=self.rig.parent.name)
                 raise CampaignAborted(message)
