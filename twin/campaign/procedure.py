@@ -235,7 +235,7 @@ class Campaign:
                     camera, "reference", 0, self.settings.reference_points, plan
                 )
             except CampaignAborted as exc:
-                self.journal.failure("campaign_aborted", str(exc))
+                self._aborted(exc)
                 return self._end()
             if len(pts):
                 self.references[camera] = (pts, pix)
@@ -266,11 +266,7 @@ class Campaign:
         try:
             reached = yield from self._travel(goal)
         except CampaignAborted as exc:
-            self.journal.failure("campaign_aborted", str(exc))
-            if isinstance(goal, Visit):
-                self.journal.skipped(
-                    goal.camera, goal.number, goal.station, "campaign_aborted", str(exc)
-                )
+            self._aborted(exc, goal)
             return False
         if isinstance(goal, Return):
             if not reached:
@@ -289,12 +285,17 @@ class Campaign:
         try:
             self.collection.calibrate(goal.camera, goal.number, goal.station, plan)
         except CampaignAborted as exc:
-            self.journal.failure("campaign_aborted", str(exc))
+            self._aborted(exc, goal)
+            return False
+        return True
+
+    def _aborted(self, exc: CampaignAborted, goal: Visit | Return | None = None) -> None:
+        """The campaign cannot go on: a failure, and the visit it was on skipped."""
+        self.journal.failure("campaign_aborted", str(exc))
+        if isinstance(goal, Visit):
             self.journal.skipped(
                 goal.camera, goal.number, goal.station, "campaign_aborted", str(exc)
             )
-            return False
-        return True
 
     def _travel(self, goal: Visit | Return) -> Generator[Question, Any, bool]:
         """CPS legs to the goal's station; whether the parent reached it.

@@ -18,7 +18,7 @@ import numpy as np
 
 from twin.montecarlo.prediction import predictions_from_log
 from twin.montecarlo.sources import isolate
-from twin.report.reading import planned_visits
+from twin.report.reading import planned_visits, skipped_why
 from twin.scenario import Scenario
 
 COLUMNS: dict[str, type] = {
@@ -224,8 +224,7 @@ def _why_not(skipped: Mapping[str, Any] | None) -> str:
     """Why a planned visit gave no calibration, from its ``skipped_visits`` entry."""
     if skipped is None:
         return "not_reached: the campaign ended before the visit"
-    reason, message = skipped["reason"], skipped.get("message")
-    return f"{reason}: {message}" if message else reason
+    return skipped_why(skipped)
 
 
 def trial_rows(

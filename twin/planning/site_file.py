@@ -109,6 +109,7 @@ def predicted_errors(scenario: Scenario) -> tuple[dict[str, float], dict[str, st
     for each camera it did not calibrate."""
     from twin.montecarlo.prediction import predictions_from_log
     from twin.record import read_log
+    from twin.report.reading import skipped_why
     from twin.runner import run_scenario
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -125,8 +126,7 @@ def predicted_errors(scenario: Scenario) -> tuple[dict[str, float], dict[str, st
     for skipped in results["skipped_visits"]:
         camera = skipped["camera"]
         if camera not in calibrated and camera not in missed:
-            message = skipped.get("message")
-            missed[camera] = f"{skipped['reason']}: {message}" if message else skipped["reason"]
+            missed[camera] = skipped_why(skipped)
     for camera in scenario.cameras:
         if camera.name not in calibrated and camera.name not in missed:
             missed[camera.name] = "not visited"

@@ -54,6 +54,12 @@ def skipped_visits(results: Results) -> list[Mapping[str, Any]]:
     return entries(results, "skipped_visits")
 
 
+def skipped_why(entry: Mapping[str, Any]) -> str:
+    """A skipped visit's reason and message as one line, ``reason: message``."""
+    reason, message = str(entry["reason"]), entry.get("message")
+    return f"{reason}: {message}" if message else reason
+
+
 def visit_key(entry: Mapping[str, Any]) -> VisitKey:
     """(camera, visit number) of a calibration or skipped visit; visit 0 if not given."""
     visit = number(entry.get("visit"))
