@@ -535,12 +535,14 @@ def position_covariance_from_blocks(
     points: ArrayLike,
     blocks: ArrayLike,
     columns: ArrayLike | None = None,
+    shared: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Covariance of T calibrated optical centres from errors of their points, where the
-    points' joint covariance is block-diagonal (the LEDs of one stop share a block).
+    points' joint covariance is block-diagonal (the LEDs of one stop share a block), plus
+    errors that several blocks share.
 
     The position part of :func:`covariance_from_point_errors` without forming the joint
-    matrix: ``sum_s H_s B_s H_s^T`` over the blocks.
+    matrix: ``sum_s H_s B_s H_s^T`` over the blocks, plus ``(H S)(H S)^T``.
 
     Args:
         cameras: T cameras (where the derivative is taken: the calibrated ones).
@@ -549,6 +551,9 @@ def position_covariance_from_blocks(
             order x0, y0, z0, x1, ... of a layout of S k / 3 points.
         columns: (T, 3n) where each point coordinate sits in that layout (default: the
             first 3n, in order; a trial that lost points keeps the layout of the rest).
+        shared: (S k, M) or (T, S k, M) the layout's errors per unit of an (M,) standard
+            normal vector common to the blocks (a marker's surveying error, the same at
+            every stop of a child), m; adds ``S S^T`` to the joint covariance. None: none.
 
     Returns:
         (T, 3, 3) covariance of the optical centres, m^2.
@@ -569,7 +574,14 @@ def position_covariance_from_blocks(
     full = np.zeros((n_t, 3, n_blocks * k))
     full[np.arange(n_t)[:, None, None], np.arange(3)[None, :, None], cols[:, None, :]] = h[:, 8:11]
     hs = full.reshape(n_t, 3, n_blocks, k)
-    return np.einsum("tasj,tbsj->tab", np.einsum("tasi,tsij->tasj", hs, b), hs)
+    cov = np.einsum("tasj,tbsj->tab", np.einsum("tasi,tsij->tasj", hs, b), hs)
+    if shared is None:
+        return cov
+    loads = np.asarray(shared, dtype=float)
+    if loads.shape[-2] != n_blocks * k or loads.ndim not in (2, 3):
+        raise ValueError(f"shared must be ({n_blocks * k}, M) or (T, ..., M), got {loads.shape}")
+    effect = full @ loads  # (T, 3, M)
+    return cov + effect @ np.swapaxes(effect, 1, 2)
 
 
 def covariance_from_point_errors(

@@ -84,6 +84,9 @@ def _first_leds(p: CheckPoint, n: int) -> CheckPoint:
         leds_covariance=p.point.leds_covariance[rows, rows]
         if np.size(p.point.leds_covariance)
         else p.point.leds_covariance,
+        survey_loading=p.point.survey_loading[rows]
+        if np.size(p.point.survey_loading)
+        else p.point.survey_loading,
     )
     return CheckPoint(point, p.sigma_px[:n], p.parent)
 

@@ -255,3 +255,31 @@ def test_block_covariance_is_the_joint_one_also_for_trials_that_lost_points() ->
     assert_allclose(lost[0], expected[8:11, 8:11], rtol=1e-10)
     with pytest.raises(ValueError, match="cannot hold 40 points"):
         position_covariance_from_blocks(cams, pts[None], blocks[None, :9])
+
+
+def test_shared_errors_add_their_part_of_the_joint_covariance() -> None:
+    # An error common to several stops (a marker's surveying error, the same at each stop
+    # of a child): loadings S on a standard normal vector add S S^T to the joint covariance,
+    # also for a trial that lost points.
+    cam = paper_camera(2)
+    rng = np.random.default_rng(10)
+    pts = led_points(cam, 40, rng)
+    factors = rng.normal(0.0, 1e-3, (10, 12, 6))
+    blocks = factors @ np.swapaxes(factors, 1, 2)
+    shared = rng.normal(0.0, 2e-3, (120, 24))
+    joint = shared @ shared.T
+    for s in range(10):
+        joint[12 * s : 12 * s + 12, 12 * s : 12 * s + 12] += blocks[s]
+    kept = np.ones(40, dtype=bool)
+    kept[20:24] = False
+    cols = (3 * np.flatnonzero(kept)[:, None] + np.arange(3)).ravel()
+    cams = TsaiCameras.from_cameras([cam])
+    full = position_covariance_from_blocks(cams, pts[None], blocks[None], shared=shared)
+    assert_allclose(full[0], covariance_from_point_errors(cam, pts, joint)[8:11, 8:11], rtol=1e-10)
+    lost = position_covariance_from_blocks(
+        cams, pts[kept][None], blocks[None], cols[None], shared[None]
+    )
+    expected = covariance_from_point_errors(cam, pts[kept], joint[np.ix_(cols, cols)])
+    assert_allclose(lost[0], expected[8:11, 8:11], rtol=1e-10)
+    with pytest.raises(ValueError, match="shared must be"):
+        position_covariance_from_blocks(cams, pts[None], blocks[None], shared=shared[:60])

@@ -220,6 +220,7 @@ class Estimators(abc.ABC):
         points: NDArray[np.float64],
         stops: NDArray[np.float64],
         slots: NDArray[np.intp] | None = None,
+        shared: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of
         its (T, n, 3) points (NaN where not calibrated), to first order at the calibrated
@@ -228,7 +229,9 @@ class Estimators(abc.ABC):
         The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its
         LEDs share the marker's measured pose), in a layout of S k / 3 points: ``slots``
         (n,) says where each point sits in it (default: the first n, in order; a stop that
-        shows only some LEDs leaves the others' rows out of the data)."""
+        shows only some LEDs leaves the others' rows out of the data); plus ``S S^T`` for
+        the (T, S k, M) ``shared`` loadings of the layout on errors common to its stops (a
+        child's marker survey: :func:`twin.instruments.marker_pose.survey_layout`)."""
 
     def truth_errors(
         self, calibrations: Calibrations, truth: TsaiCamera
@@ -375,12 +378,14 @@ class TrialByTrial(Estimators):
             pix[k], err[k] = m.pixel.mean, m.error_3d.mean
         return pix, err
 
-    def points_effect(self, calibrations, points, stops, slots=None):
+    def points_effect(self, calibrations, points, stops, slots=None, shared=None):
         out = np.full((len(points), 3, 3), np.nan)
         for k in np.flatnonzero(calibrations.calibrated):
             rows = np.flatnonzero(calibrations.kept[k])
             cols = slot_rows(rows[None], slots)[0]
             joint = block_diagonal(stops[k : k + 1])[0]
+            if shared is not None:
+                joint = joint + shared[k] @ shared[k].T
             cov = covariance_from_point_errors(
                 calibrations.cameras.camera(k), points[k][rows], joint[np.ix_(cols, cols)]
             )

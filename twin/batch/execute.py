@@ -69,6 +69,7 @@ from twin.batch.plan import (
 )
 from twin.batch.vectorised import Vectorised
 from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import survey_layout, survey_loading
 from twin.instruments.noise import normalise_polar, polar_sigmas, quantise_polar
 from twin.instruments.polar import cartesian2polar, polar2cartesian
 from twin.instruments.tilt import level_points, tilt_from_orientation
@@ -241,6 +242,8 @@ class _DataSet:
     pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, k, 2) each
     covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, 3N_led)
     leds: list[NDArray[np.intp]] = field(default_factory=list)  # (k,) each: which LEDs
+    children: list[str] = field(default_factory=list)  # each stop's child
+    surveys: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, M) each
     size: int | None = None
 
     def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -256,6 +259,13 @@ class _DataSet:
         """(T, S, 3N_led, 3N_led) the covariance of each stop's LEDs, all N_led of them
         (the joint covariance of the data set is block-diagonal: one block a stop)."""
         return np.stack(self.covariances, axis=1)
+
+    def shared(self) -> NDArray[np.float64] | None:
+        """(T, S 3N_led, C M) the stops' loadings on their children's surveying errors in
+        the layout of :meth:`stops` (None where the assembly is known exactly)."""
+        if not self.covariances:
+            return None
+        return survey_layout(self.children, self.surveys, self.covariances[0].shape[-1])
 
     def slots(self) -> NDArray[np.intp]:
         """(n,) where each LED point sits in the layout of :meth:`stops` (S stops of N_led
@@ -512,6 +522,13 @@ class BatchRun:
         data.points.append(world)
         data.pixels.append(pixels)
         data.covariances.append(turn @ cov_level @ np.swapaxes(turn, 1, 2))
+        # The assembly's surveying error, turned with the child (the same at every stop).
+        data.children.append(step.child)
+        data.surveys.append(
+            survey_loading(self.marker, rot_z(self.robots[step.child].true[:, 2]))
+            if self.marker.survey_sigma > 0
+            else np.zeros((0, 0))
+        )
         if self.network is not None and getattr(step, "dataset", "visit") == "visit":
             rows = (3 * leds[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
             cov = data.covariances[-1][:, rows][:, :, rows]
@@ -544,7 +561,9 @@ class BatchRun:
             cal.sigma_px,
             self.advertised_led_px[step.camera],
             np.trace(
-                est.points_effect(cal, points, data.stops(), data.slots()[: points.shape[1]]),
+                est.points_effect(
+                    cal, points, data.stops(), data.slots()[: points.shape[1]], data.shared()
+                ),
                 axis1=1,
                 axis2=2,
             ),

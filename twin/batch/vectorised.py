@@ -175,7 +175,7 @@ class Vectorised(Estimators):
                 np.where(n > 0, error.sum(axis=1) / n, np.nan),
             )
 
-    def points_effect(self, calibrations, points, stops, slots=None):
+    def points_effect(self, calibrations, points, stops, slots=None, shared=None):
         out = np.full((len(points), 3, 3), np.nan)
         for trials, rows in by_count(calibrations.kept & calibrations.calibrated[:, None]):
             if rows.shape[1] > 0:  # else not calibrated
@@ -184,6 +184,7 @@ class Vectorised(Estimators):
                     points[trials[:, None], rows],
                     stops[trials],
                     slot_rows(rows, slots),
+                    None if shared is None else shared[trials],
                 )
         return out
 

@@ -22,7 +22,7 @@ from twin.campaign.records import CalibrationRecord, DataPoint
 from twin.campaign.strategy import PlannedStop, StopPlan
 from twin.campaign.travel import Travel
 from twin.hal.rig import Rig
-from twin.instruments.marker_pose import led_positions
+from twin.instruments.marker_pose import led_positions, survey_loading
 from twin.scenario.schema import CampaignSettings
 from twin.timing import timed
 
@@ -138,11 +138,18 @@ class DataCollection:
         leds_world = parent.level2world(leds_level)
         pixels = seen.pixels
         cov = turn @ cov_level @ turn.T
+        marker = self.travel.marker
+        survey = (
+            survey_loading(marker, parent.rotation @ obs.marker_pose.rotation)
+            if marker.survey_sigma > 0
+            else np.zeros((0, 0))
+        )
         if partial and not seen.complete:
             # The LEDs that were found, and their rows and columns of the joint covariance.
             found = seen.found
             rows = np.repeat(found, 3)
             leds_world, pixels, cov = leds_world[found], pixels[found], cov[np.ix_(rows, rows)]
+            survey = survey[rows] if survey.size else survey
         return DataPoint(
             self.rig.clock.now(),
             dataset,
@@ -154,6 +161,7 @@ class DataCollection:
             parent.level2world(obs.point_level)[:2],
             cov,
             partial,
+            survey,
         )
 
     def calibrate(self, camera: str, visit: int, station: NDArray[np.float64], plan: StopPlan):

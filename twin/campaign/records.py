@@ -99,6 +99,11 @@ class DataPoint:
         partial: whether the stop's plan takes a point from the LEDs the camera finds where
             it does not find them all (:attr:`twin.campaign.strategy.StopPlan.partial`);
             else such a stop gives no point.
+        survey_loading: (3 N_led, M) the error of ``leds_world`` from the marker
+            assembly's surveying error, m, per unit of an (M,) standard normal vector that
+            every stop of this child shares (:func:`twin.instruments.marker_pose.
+            survey_loading`): two stops s, t of the child add ``L_s L_t^T`` to their joint
+            covariance. Empty when the assembly is known exactly.
     """
 
     timestamp: float
@@ -111,6 +116,7 @@ class DataPoint:
     child_xy: NDArray[np.float64]
     leds_covariance: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
     partial: bool = False
+    survey_loading: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ statistic, to first order, from the three side lengths, vectorised.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -199,6 +200,69 @@ def led_positions(
     jac = pose.point_jacobian(marker.leds_body).reshape(-1, 6)
     cov = jac @ pose.covariance @ jac.T
     return leds, 0.5 * (cov + cov.T)
+
+
+def survey_covariance(marker: MarkerAssembly) -> NDArray[np.float64]:
+    """(3 N_led, 3 N_led) covariance of the LEDs' placement error in the child's body
+    frame from the assembly's surveying error, m^2 (rows x0 y0 z0 x1 ...).
+
+    Every coordinate of the assembly's cubes (``dc``) and LEDs (``dl``) is off the drawing
+    by an error of standard deviation ``marker.survey_sigma``, fixed for the child. A pose
+    fitted to the cubes as built then takes the drawing's cubes onto them, off by
+    ``A dc`` in the body frame (``A = (J^T J)^-1 J^T``, J the pose Jacobian at the cubes);
+    the LEDs placed with it are off by ``P A dc - dl`` (P the pose Jacobian at the LEDs),
+    whatever the child's pose: ``sigma^2 (P A A^T P^T + I)``. The error is the same at
+    every stop of the child (turned with its heading), so it does not average down over a
+    data set's stops (:func:`survey_loading`).
+    """
+    identity = MarkerPose(np.eye(3), np.zeros(3), np.zeros((6, 6)), 0.0)
+    jac = identity.point_jacobian(marker.cubes_body).reshape(-1, 6)
+    gain = identity.point_jacobian(marker.leds_body).reshape(-1, 6) @ np.linalg.solve(
+        jac.T @ jac, jac.T
+    )
+    return marker.survey_sigma**2 * (gain @ gain.T + np.eye(len(gain)))
+
+
+def survey_loading(marker: MarkerAssembly, body2world: ArrayLike) -> NDArray[np.float64]:
+    """(..., 3 N_led, 3 N_led) the LEDs' placement error in W at one stop, m, per unit of a
+    standard normal vector shared by every stop of the child: ``kron(I, R) C`` with
+    ``C C^T`` the :func:`survey_covariance` and R the marker's (..., 3, 3) ``body2world``
+    rotation at the stop. Zeros for an assembly known exactly (``survey_sigma`` 0).
+
+    The LEDs of two stops s and t of one child have the joint covariance
+    ``L_s L_t^T``.
+    """
+    rotation = np.asarray(body2world, dtype=float)
+    n = len(marker.leds_body)
+    if marker.survey_sigma == 0.0:
+        return np.zeros((*rotation.shape[:-2], 3 * n, 3 * n))
+    factor = np.linalg.cholesky(survey_covariance(marker)).reshape(n, 3, 3 * n)
+    turned = np.einsum("...ij,njm->...nim", rotation, factor)
+    return turned.reshape(*rotation.shape[:-2], 3 * n, 3 * n)
+
+
+def survey_layout(
+    children: Sequence[str], loadings: Sequence[NDArray[np.float64]], k: int
+) -> NDArray[np.float64] | None:
+    """The loadings of a data set's S stops on their children's surveying errors
+    (:func:`survey_loading`, each (..., r_s, M) with r_s <= ``k`` rows: the stop's LEDs) in
+    a layout of one block of ``k`` rows a stop, each stop's rows at the start of its block:
+    (..., S k, C M) for the C children (the argument ``shared`` of
+    :func:`calib.tsai_batch.position_covariance_from_blocks`); None where no stop has one
+    (an empty loading: an assembly known exactly).
+    """
+    if not any(load.size for load in loadings):
+        return None
+    given = [(c, load) for c, load in zip(children, loadings, strict=True) if load.size]
+    names = sorted({c for c, _ in given})
+    lead, m = given[0][1].shape[:-2], max(load.shape[-1] for _, load in given)
+    out = np.zeros((*lead, len(loadings) * k, len(names) * m))
+    for s, (child, load) in enumerate(zip(children, loadings, strict=True)):
+        if load.size:
+            c = names.index(child)
+            rows = load.shape[-2]
+            out[..., s * k : s * k + rows, c * m : c * m + load.shape[-1]] = load
+    return out
 
 
 def cube_centroid(

@@ -33,6 +33,7 @@ from calib.covariance import own_position_variance
 from calib.io.camera_files import camera_from_dict
 from calib.tsai_batch import position_covariance_from_blocks
 from twin.campaign.records import CALIBRATION, PARENT_FIX, POINT
+from twin.instruments.marker_pose import survey_layout
 from twin.truth import TRUTH_INSTRUMENT, instrument_truth
 
 
@@ -106,11 +107,8 @@ def points_variance(model: dict[str, Any], stops: Sequence[dict[str, Any]], n: i
     camera = camera_from_dict(model, "calibration record")
     assert isinstance(camera, TsaiCamera)
     cameras = TsaiCameras.from_cameras([camera])
-    if len({b.shape for b in blocks}) == 1:
-        cov = position_covariance_from_blocks(cameras, points[None], np.stack(blocks)[None])
-        return float(np.trace(cov[0]))
-    # Stops with fewer LEDs (campaign.data_stops = "accuracy"): each block padded to the
-    # largest, the points' coordinates placed at the start of their stop's block.
+    # Each block padded to the largest (stops with fewer LEDs: campaign.data_stops =
+    # "accuracy"), the points' coordinates placed at the start of their stop's block.
     k = max(len(b) for b in blocks)
     padded = np.zeros((len(blocks), k, k))
     columns = []
@@ -118,7 +116,12 @@ def points_variance(model: dict[str, Any], stops: Sequence[dict[str, Any]], n: i
         padded[s, : len(b), : len(b)] = b
         columns.append(s * k + np.arange(len(b)))
     cols = np.concatenate(columns)[: 3 * len(points)]
-    cov = position_covariance_from_blocks(cameras, points[None], padded[None], cols[None])
+    shared = survey_layout(
+        [s.get("child", "") for s in stops],
+        [np.asarray(s.get("survey_loading", []), dtype=float) for s in stops],
+        k,
+    )
+    cov = position_covariance_from_blocks(cameras, points[None], padded[None], cols[None], shared)
     return float(np.trace(cov[0]))
 
 

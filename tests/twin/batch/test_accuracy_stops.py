@@ -95,6 +95,59 @@ def test_the_points_part_of_the_prediction_is_the_campaigns(accuracy_plan):
     np.testing.assert_allclose(got, want, rtol=1e-9)
 
 
+@pytest.fixture(scope="module")
+def surveyed_plan(accuracy_plan):
+    """The plan with a marker known to 2 mm (the plan itself does not depend on it)."""
+    values = {"marker.survey_sigma_m": 0.002, "noise.marker_geometry_m": 0.002}
+    return dataclasses.replace(accuracy_plan, scenario=with_values(accuracy_plan.scenario, values))
+
+
+def test_the_survey_part_of_the_prediction_is_the_campaigns(surveyed_plan):
+    # Each stop's LEDs load on their child's surveying error (turned with the child): the
+    # batch's layout of the loadings gives what the campaign's prediction gives from the
+    # data points' survey_loading.
+    quiet = surveyed_plan.scenario.without_noise().noise
+    run = BatchRun(surveyed_plan, [5], noise=quiet)
+    run.run()
+    (cal,) = surveyed_plan.calibrations
+    data = run.datasets[("visit", cal.camera, cal.visit)]
+    points, pixels = data.arrays(cal.points)
+    est = Vectorised()
+    cams = est.calibrate(points, pixels, cal.nominal.image_size, cal.nominal)
+    slots = data.slots()[: cal.points]
+    shared = data.shared()
+    assert shared is not None
+    got = np.trace(est.points_effect(cams, points, data.stops(), slots, shared)[0])
+    alone = np.trace(est.points_effect(cams, points, data.stops(), slots)[0])
+    stops = []
+    for world, cov, leds, child, load in zip(
+        data.points, data.covariances, data.leds, data.children, data.surveys, strict=True
+    ):
+        rows = coordinate_rows(leds[None])[0]
+        stops.append(
+            {
+                "child": child,
+                "leds_world": world[0],
+                "leds_covariance": cov[0][np.ix_(rows, rows)],
+                "survey_loading": load[0][rows],
+            }
+        )
+    want = points_variance(camera_to_dict(cams.cameras.camera(0)), stops, cal.points)
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    # A 2 mm survey moves the camera by more than the shots do.
+    assert got > 2 * alone
+
+
+def test_the_array_estimators_give_the_scalar_survey_part(surveyed_plan):
+    seeds = list(range(60, 66))
+    scalar = BatchRun(surveyed_plan, seeds, estimators=TrialByTrial()).run()
+    arrays = BatchRun(surveyed_plan, seeds, estimators=Vectorised()).run()
+    ((key, v),) = scalar.calibrations.items()
+    w = arrays.calibrations[key]
+    assert w.calibrated.all()
+    np.testing.assert_allclose(w.predicted_calibration, v.predicted_calibration, rtol=1e-5)
+
+
 def test_a_missing_led_is_given_up_alone(accuracy_plan):
     # LED 0 as wide as the image: no trial finds it. With accuracy stops each stop that
     # showed it loses that LED only (one failure a stop); the other LEDs stay points.

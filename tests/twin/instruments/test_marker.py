@@ -13,6 +13,9 @@ from twin.instruments.marker_pose import (
     fit_marker_pose,
     led_positions,
     marker_consistency_chi2,
+    survey_covariance,
+    survey_layout,
+    survey_loading,
 )
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import cartesian2polar, polar2cartesian
@@ -82,6 +85,59 @@ def test_led_covariance_matches_monte_carlo():
         nees[i] = e @ np.linalg.solve(cov[9:12, 9:12], e)
     # 3 degrees of freedom: mean 3, standard error sqrt(6 / n) = 0.045
     assert nees.mean() == pytest.approx(3.0, abs=0.2)
+
+
+def test_survey_covariance_matches_monte_carlo_of_a_surveyed_assembly():
+    # Each coordinate of the cubes and LEDs as built is off the drawing by 3 mm (std); the
+    # pose fitted to the built cubes with the drawing places the LEDs off by what
+    # survey_loading predicts, at any heading (here 0.7 rad), shared by the child's stops.
+    sigma, n = 0.003, 4000
+    marker = MarkerAssembly(survey_sigma=sigma)
+    rng = np.random.default_rng(12)
+    rot = Rotation.from_euler("z", 0.7).as_matrix()
+    t = np.array([3.0, 1.0, -0.2])
+    errors = np.empty((n, 3 * len(MARKER.leds_body)))
+    for i in range(n):
+        cubes = MARKER.cubes_body + sigma * rng.standard_normal((3, 3))
+        leds = MARKER.leds_body + sigma * rng.standard_normal(MARKER.leds_body.shape)
+        pose = fit_marker_pose(cubes @ rot.T + t, MARKER)
+        errors[i] = (pose.transform(MARKER.leds_body) - (leds @ rot.T + t)).ravel()
+    loading = survey_loading(marker, rot)
+    predicted = loading @ loading.T
+    # A variance from n samples has a relative standard error of sqrt(2 / n) = 2.2 %.
+    np.testing.assert_allclose(np.cov(errors.T).diagonal(), predicted.diagonal(), rtol=0.1)
+    # The top LED's error is several times the surveying error: the cubes' small triangle
+    # turns the whole mast.
+    assert np.sqrt(predicted.diagonal()).max() > 4 * sigma
+    np.testing.assert_allclose(
+        survey_covariance(marker),
+        survey_loading(marker, np.eye(3)) @ survey_loading(marker, np.eye(3)).T,
+        atol=1e-18,
+    )
+
+
+def test_survey_loading_turns_with_the_child_and_vanishes_for_an_exact_assembly():
+    marker = MarkerAssembly(survey_sigma=0.001)
+    rots = Rotation.from_euler("z", [[0.3], [2.0]]).as_matrix()
+    both = survey_loading(marker, rots)
+    assert both.shape == (2, 12, 12)
+    for k in range(2):
+        np.testing.assert_allclose(both[k], survey_loading(marker, rots[k]), atol=1e-15)
+    # Turning the child turns its LEDs' errors: the covariance's trace stays.
+    assert np.trace(both[0] @ both[0].T) == pytest.approx(np.trace(both[1] @ both[1].T))
+    assert not survey_loading(MARKER, rots[0]).any()
+
+
+def test_survey_layout_places_each_stop_on_its_childs_columns():
+    a, b = np.full((6, 2), 1.0), np.full((3, 2), 2.0)
+    out = survey_layout(["c2", "c1", "c2"], [a, b, a], k=6)
+    assert out.shape == (18, 4)
+    np.testing.assert_array_equal(out[0:6, 2:4], a)  # c2: the second child by name
+    np.testing.assert_array_equal(out[6:9, 0:2], b)  # a stop of one LED: its rows first
+    assert not out[9:12].any()
+    np.testing.assert_array_equal(out[12:18, 2:4], a)
+    assert out[:, :2].sum() == b.sum()
+    assert survey_layout(["c1"], [np.zeros((0, 0))], k=6) is None
 
 
 def test_centroid_and_its_covariance():

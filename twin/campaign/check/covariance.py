@@ -36,7 +36,9 @@ def stacked(points: Sequence[CheckPoint]) -> tuple[NDArray[np.float64], NDArray[
 
 def leds_covariance(points: Sequence[CheckPoint]) -> NDArray[np.float64]:
     """(3N, 3N) joint covariance of the LED positions in W, m^2: each stop's own block,
-    plus the parent's pose error, shared by every LED measured from the same fix.
+    plus the parent's pose error, shared by every LED measured from the same fix, plus the
+    marker assembly's surveying error, shared by every stop of the same child
+    (:attr:`twin.campaign.records.DataPoint.survey_loading`).
 
     A point whose covariance is unknown (empty) contributes only the parent's part.
     """
@@ -45,6 +47,8 @@ def leds_covariance(points: Sequence[CheckPoint]) -> NDArray[np.float64]:
     cov = np.zeros((3 * n, 3 * n))
     # The rows of the LEDs measured from each fix of the parent (the same record).
     fixes: dict[int, tuple[ParentFix, list[int]]] = {}
+    # Each child's rows and their loadings on its surveying error.
+    surveyed: dict[str, tuple[list[NDArray[np.intp]], list[NDArray[np.float64]]]] = {}
     rows = 0
     for p in points:
         k = len(np.asarray(p.point.leds_world).reshape(-1, 3))
@@ -52,7 +56,15 @@ def leds_covariance(points: Sequence[CheckPoint]) -> NDArray[np.float64]:
         if own.size:
             cov[3 * rows : 3 * (rows + k), 3 * rows : 3 * (rows + k)] += own
         fixes.setdefault(id(p.parent), (p.parent, []))[1].extend(range(rows, rows + k))
+        loading = np.asarray(p.point.survey_loading, dtype=float)
+        if loading.size:
+            mine = surveyed.setdefault(p.point.child, ([], []))
+            mine[0].append(np.arange(3 * rows, 3 * (rows + k)))
+            mine[1].append(loading.reshape(3 * k, -1))
         rows += k
+    for child_rows, loadings in surveyed.values():
+        idx, load = np.concatenate(child_rows), np.concatenate(loadings)
+        cov[np.ix_(idx, idx)] += load @ load.T
     for fix, mine in fixes.values():
         idx = np.array(mine)
         cols = (3 * idx[:, None] + np.arange(3)).ravel()

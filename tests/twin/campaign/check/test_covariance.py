@@ -1,7 +1,10 @@
-"""The check data's joint covariance: each stop's own block, and the parent's pose error
-shared by everything measured from one fix."""
+"""The check data's joint covariance: each stop's own block, the parent's pose error
+shared by everything measured from one fix, and a child's marker survey error shared by
+its stops."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from numpy.testing import assert_allclose
@@ -10,6 +13,8 @@ from calib.rotation import rot_z
 from twin.campaign.check.covariance import leds_covariance, parent_jacobian, pixel_noise
 from twin.campaign.check.gathering import CheckPoint
 from twin.campaign.records import ParentFix
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import survey_loading
 
 from .synthetic import PARENT_COV, draw_points, stop_covariance, true_leds
 from .test_statistics import CAMERA
@@ -46,6 +51,34 @@ def test_one_fix_is_shared_and_two_fixes_are_not():
     cov2 = leds_covariance(moved)
     assert_allclose(cov2[24:, :24], 0.0)
     assert_allclose(cov2[:24, :24], cov[:24, :24])
+
+
+def test_a_childs_survey_error_ties_its_stops_and_not_the_other_childs():
+    points = draw_points(CAMERA, true_leds(CAMERA, 3, seed=1), np.random.default_rng(0))
+    plain = leds_covariance(points)
+    marker = MarkerAssembly(survey_sigma=0.002)
+    loads = [survey_loading(marker, rot_z(yaw)) for yaw in (0.0, 1.0, 2.0)]
+    children = ("child1", "child2", "child1")
+    surveyed = [
+        CheckPoint(dataclasses.replace(p.point, child=c, survey_loading=load), p.sigma_px, p.parent)
+        for p, c, load in zip(points, children, loads, strict=True)
+    ]
+    cov = leds_covariance(surveyed)
+    added = cov - plain
+    # Stops 0 and 2 (child1) share L0 L2^T; child2's stop shares nothing with them.
+    assert_allclose(added[:12, :12], loads[0] @ loads[0].T, atol=1e-18)
+    assert_allclose(added[:12, 24:], loads[0] @ loads[2].T, atol=1e-18)
+    assert_allclose(added[12:24, 12:24], loads[1] @ loads[1].T, atol=1e-18)
+    assert_allclose(added[:12, 12:24], 0.0, atol=1e-18)
+    assert np.abs(added[:12, 24:]).max() > 1e-6  # millimetres squared: not negligible
+    # A stop of fewer LEDs carries the rows of those it kept.
+    cut = dataclasses.replace(surveyed[2].point, survey_loading=loads[2][:6])
+    cut = dataclasses.replace(cut, leds_world=cut.leds_world[:2], pixels=cut.pixels[:2])
+    cut = dataclasses.replace(cut, leds_covariance=cut.leds_covariance[:6, :6])
+    fewer = leds_covariance(
+        [*surveyed[:2], CheckPoint(cut, points[2].sigma_px[:2], points[2].parent)]
+    )
+    assert_allclose(fewer, cov[:30, :30], atol=1e-18)
 
 
 def test_the_pixel_noise_has_a_floor():
