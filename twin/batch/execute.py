@@ -532,7 +532,16 @@ class BatchRun:
         if self.network is not None and getattr(step, "dataset", "visit") == "visit":
             rows = (3 * leds[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
             cov = data.covariances[-1][:, rows][:, :, rows]
-            self.network.stop(step.camera, step.visit, world, cov, pixels)
+            survey = data.surveys[-1]
+            self.network.stop(
+                step.camera,
+                step.visit,
+                world,
+                cov,
+                pixels,
+                step.child,
+                survey[:, rows] if survey.size else None,
+            )
         data.leds.append(leds)
 
     def _calibrate(self, step: Calibrate) -> None:

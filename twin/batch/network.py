@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,7 +35,9 @@ class NetworkRecorder:
     Each event is a tuple: ``("station", yaw (T,), centre (T, 3))``; ``("stand", child,
     level (T, 3), covariance (T, 3, 3), world (T, 3))``; ``("sight", child, level,
     covariance)``; ``("stop", camera, visit, leds_world (T, N, 3), covariance_world
-    (T, 3N, 3N), pixels (T, N, 2))`` (NaN for the LEDs a trial gave up);
+    (T, 3N, 3N), pixels (T, N, 2), child, survey (T, 3N, M) or None)`` (NaN for the LEDs a
+    trial gave up; the survey loading: :attr:`twin.campaign.records.DataPoint.
+    survey_loading`);
     ``("calibrated", camera, visit, cameras, calibrated (T,), points)``.
     """
 
@@ -50,10 +53,26 @@ class NetworkRecorder:
         self.events.append(("sight", child, np.array(level), np.array(cov)))
 
     def stop(
-        self, camera: str, visit: int, leds_world: NDArray, cov_world: NDArray, pixels: NDArray
+        self,
+        camera: str,
+        visit: int,
+        leds_world: NDArray,
+        cov_world: NDArray,
+        pixels: NDArray,
+        child: str = "",
+        survey: NDArray | None = None,
     ) -> None:
         self.events.append(
-            ("stop", camera, visit, np.array(leds_world), np.array(cov_world), np.array(pixels))
+            (
+                "stop",
+                camera,
+                visit,
+                np.array(leds_world),
+                np.array(cov_world),
+                np.array(pixels),
+                child,
+                None if survey is None else np.array(survey),
+            )
         )
 
     def calibrated(
@@ -70,7 +89,7 @@ class NetworkRecorder:
         """Trial ``k``'s network (one camera per camera, started from its first successful
         calibration) and the LED stops of each calibrated visit."""
         net = NetworkBuilder(child_creep_m)
-        stops: dict[tuple[str, int], list[tuple[int, NDArray, NDArray, NDArray]]] = {}
+        stops: dict[tuple[str, int], list[tuple[Any, ...]]] = {}
         cameras: dict[str, int] = {}
         groups: dict[tuple[str, int], tuple[int, ...]] = {}
         for event in self.events:
@@ -82,9 +101,16 @@ class NetworkRecorder:
             elif kind == "sight":
                 net.sight_child(event[1], event[2][k], event[3][k])
             elif kind == "stop":
-                _, camera, visit, world, cov, pixels = event
+                _, camera, visit, world, cov, pixels, child, survey = event
                 stops.setdefault((camera, visit), []).append(
-                    (net.current, world[k], cov[k], pixels[k])
+                    (
+                        net.current,
+                        world[k],
+                        cov[k],
+                        pixels[k],
+                        child,
+                        None if survey is None else survey[k],
+                    )
                 )
             elif kind == "calibrated":
                 _, camera, visit, cams, ok, points = event
@@ -97,7 +123,7 @@ class NetworkRecorder:
                         tsai_vector(model), model.image_size, sigma, camera
                     )
                 first, left = len(net.leds), int(points)
-                for station, world, cov, pixels in stops.get((camera, visit), []):
+                for station, world, cov, pixels, child, survey in stops.get((camera, visit), []):
                     if left <= 0:
                         break
                     n = min(left, len(world))
@@ -107,7 +133,15 @@ class NetworkRecorder:
                         continue
                     rows = np.repeat(seen, 3)
                     block = cov[: 3 * n, : 3 * n][np.ix_(rows, rows)]
-                    net.stop(station, cameras[camera], world[:n][seen], block, pixels[:n][seen])
+                    net.stop(
+                        station,
+                        cameras[camera],
+                        world[:n][seen],
+                        block,
+                        pixels[:n][seen],
+                        child,
+                        None if survey is None else survey[: 3 * n][rows],
+                    )
                 groups[(camera, visit)] = tuple(range(first, len(net.leds)))
         return net, groups
 

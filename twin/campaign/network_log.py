@@ -150,7 +150,16 @@ def network_from_log(
             if cov.size == 0:  # a log written before the points' covariance was recorded
                 cov = np.zeros((3 * n, 3 * n))
             pixels = _a(p["pixels"]).reshape(-1, 2)[:n]
-            net.stop(station, keys.index(key), world, cov[: 3 * n, : 3 * n], pixels)
+            survey = _a(p.get("survey_loading", np.zeros((0, 0))))
+            net.stop(
+                station,
+                keys.index(key),
+                world,
+                cov[: 3 * n, : 3 * n],
+                pixels,
+                str(p.get("child", "")),
+                survey.reshape(len(survey), -1)[: 3 * n] if survey.size else None,
+            )
         groups.append(tuple(range(first, len(net.leds))))
     network = net.build()
     index = NetworkIndex(

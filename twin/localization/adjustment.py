@@ -13,6 +13,10 @@ covariance so that a consistent network has unit variance:
   ``sigma_px^2 I + G Cov(l) G^T`` (``G`` the projection's derivative with respect to the
   LEDs), fixed at the start.
 
+Where a child's marker assembly is known only to its survey (``LedSighting.survey_level``),
+its survey error is an unknown too: a standard normal vector ``z`` (its prior, one residual
+a component) that moves the LEDs of every stop of the child by ``S z``, turned with it.
+
 Solved by Levenberg-Marquardt on the sparse normal equations ``J^T J``, each step solved
 exactly by sparse LU (:func:`scipy.sparse.linalg.splu`): each residual touches one station
 and one target or camera, so a hall campaign's Jacobian (a few thousand residuals, about
@@ -44,7 +48,7 @@ from scipy.stats import chi2 as chi2_dist
 
 from calib.rotation import rot_z
 from calib.tsai import N_TSAI, tsai_pixels_and_jacobian
-from twin.localization.network import STATION_DOF, Network
+from twin.localization.network import STATION_DOF, LedSighting, Network
 
 
 class NothingToAdjustError(ValueError):
@@ -99,7 +103,19 @@ class _Layout:
         start = STATION_DOF * (self.n_stations - 1)
         self.target_column[self.free_targets] = start + 3 * np.arange(len(self.free_targets))
         self.camera_start = start + 3 * len(self.free_targets)
-        self.size = self.camera_start + N_TSAI * len(network.cameras)
+        self.camera_end = self.camera_start + N_TSAI * len(network.cameras)
+        # Each surveyed child's (M,) standard normal survey error, after the cameras.
+        widths: dict[str, int] = {}
+        for s in network.led_sightings:
+            if s.survey_level.size:
+                widths.setdefault(s.child, s.survey_level.shape[1])
+        self.survey_column: dict[str, int] = {}
+        self.survey_width: dict[str, int] = {}
+        at = self.camera_end
+        for child in sorted(widths):
+            self.survey_column[child], self.survey_width[child] = at, widths[child]
+            at += widths[child]
+        self.size = at
 
     def station_column(self, k: int) -> int:
         """First column of station ``k`` (-1 for station 0, which is fixed)."""
@@ -114,8 +130,8 @@ class _Layout:
         x[: self.camera_start - 3 * len(self.free_targets)] = network.stations[1:].ravel()
         for m in self.free_targets:
             x[self.target_column[m] : self.target_column[m] + 3] = network.targets[m]
-        x[self.camera_start :] = network.cameras.ravel()
-        return x
+        x[self.camera_start : self.camera_end] = network.cameras.ravel()
+        return x  # the survey errors start at 0
 
     def unpack(self, x: NDArray[np.float64], network: Network) -> tuple[NDArray, NDArray, NDArray]:
         stations = network.stations.copy()
@@ -123,7 +139,7 @@ class _Layout:
         targets = network.targets.copy()
         for m in self.free_targets:
             targets[m] = x[self.target_column[m] : self.target_column[m] + 3]
-        cameras = x[self.camera_start :].reshape(-1, N_TSAI)
+        cameras = x[self.camera_start : self.camera_end].reshape(-1, N_TSAI)
         return stations, targets, cameras
 
 
@@ -152,10 +168,37 @@ class _Problem:
         self.l_camera = np.repeat([s.camera for s in leds], counts).astype(int)
         self.l_level = np.concatenate([s.leds_level for s in leds]) if leds else np.zeros((0, 3))
         self.l_pixels = np.concatenate([s.pixels for s in leds]) if leds else np.zeros((0, 2))
+        self._survey_loadings(leds)
         self.rows_points = 3 * len(ps)
-        self.size = self.rows_points + 2 * len(self.l_level)
+        self.rows_prior = self.rows_points + 2 * len(self.l_level)
+        n_survey = self.layout.size - self.layout.camera_end
+        self.size = self.rows_prior + n_survey
         blocks = [_whitener(s.covariance) for s in ps] + self._led_whiteners()
+        if n_survey:
+            blocks.append(np.eye(n_survey))  # the survey errors' prior: standard normal
         self.whitener = sp.block_diag(blocks, format="csr") if blocks else sp.csr_matrix((0, 0))
+
+    def _survey_loadings(self, leds: tuple[LedSighting, ...]) -> None:
+        """Each LED's (3, M) loading on its child's survey error in the levelled frame and
+        the first column of that error (-1: known exactly)."""
+        width = max(self.layout.survey_width.values(), default=0)
+        n = len(self.l_level)
+        self.l_survey = np.zeros((n, 3, width))
+        self.l_survey_column = np.full(n, -1)
+        at = 0
+        for s in leds:
+            k = len(s.pixels)
+            if s.survey_level.size:
+                m = s.survey_level.shape[1]
+                self.l_survey[at : at + k, :, :m] = s.survey_level.reshape(k, 3, m)
+                self.l_survey_column[at : at + k] = self.layout.survey_column[s.child]
+            at += k
+
+    def _survey_errors(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """(N, M) each LED's child's survey error in ``x`` (zeros where known exactly)."""
+        width = self.l_survey.shape[2]
+        cols = self.l_survey_column[:, None] + np.arange(width)
+        return np.where(cols >= 0, x[np.maximum(cols, 0)], 0.0)
 
     def _led_whiteners(self) -> list[NDArray[np.float64]]:
         """Each stop's whitener from its pixel noise and its LEDs' covariance, at the start."""
@@ -215,10 +258,11 @@ class _Problem:
         target_cols = self.layout.target_column[self.p_target]
         add(first, rt, np.where(target_cols[:, None] >= 0, target_cols[:, None] + np.arange(3), -1))
 
-        # LEDs seen by cameras: pixels - P(q, Rz(yaw) l + t).
+        # LEDs seen by cameras: pixels - P(q, Rz(yaw) (l + S z) + t), S z the LEDs' share of
+        # their child's survey error.
         yaw = stations[self.l_station, 0]
         c, s = np.cos(yaw), np.sin(yaw)
-        lv = self.l_level
+        lv = self.l_level + np.einsum("nim,nm->ni", self.l_survey, self._survey_errors(x))
         world = (
             np.column_stack([c * lv[:, 0] - s * lv[:, 1], s * lv[:, 0] + c * lv[:, 1], lv[:, 2]])
             + stations[self.l_station, 1:]
@@ -232,7 +276,7 @@ class _Problem:
             mine = self.l_camera == cam
             size = tuple(int(v) for v in self.net.image_sizes[cam])
             uv[mine], jac[mine] = tsai_pixels_and_jacobian(cameras[cam], world[mine], size)
-        raw[self.rows_points :] = np.nan_to_num(uv - self.l_pixels, nan=1e3).ravel()
+        raw[self.rows_points : self.rows_prior] = np.nan_to_num(uv - self.l_pixels, nan=1e3).ravel()
         jac = np.nan_to_num(jac, nan=0.0)
         first = self.rows_points + 2 * np.arange(len(lv))
         cam_cols = self.layout.camera_column(self.l_camera)[:, None] + np.arange(N_TSAI)
@@ -242,6 +286,22 @@ class _Problem:
             [np.einsum("nij,nj->ni", d_world, d_world_d_yaw)[:, :, None], d_world], axis=2
         )
         add(first, d_station, self._station_columns(self.l_station))
+        if self.l_survey.shape[2]:
+            turn = np.zeros((len(lv), 3, 3))
+            turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1] = c, -s, s, c
+            turn[:, 2, 2] = 1.0
+            d_survey = np.einsum("nij,njk,nkm->nim", d_world, turn, self.l_survey)
+            z_cols = self.l_survey_column[:, None] + np.arange(self.l_survey.shape[2])
+            add(first, d_survey, np.where(self.l_survey_column[:, None] >= 0, z_cols, -1))
+            # The prior of the survey errors: z itself (standard normal).
+            z = x[self.layout.camera_end :]
+            raw[self.rows_prior :] = z
+            prior = np.arange(len(z))
+            add(
+                self.rows_prior + prior,
+                np.ones((len(z), 1, 1)),
+                (self.layout.camera_end + prior)[:, None],
+            )
 
         jac_raw = sp.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),

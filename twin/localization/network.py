@@ -12,7 +12,9 @@ keeps every measurement so that :mod:`.adjustment` can solve them all at once:
   with its covariance (the total station's and the inclinometer's noise).
 - **LED sightings**: one stop of a child in a camera's view: its LEDs in the levelled frame
   of the station that measured them (with their joint covariance, from the marker pose)
-  and where the camera found them.
+  and where the camera found them; with their loading on the child's marker survey error
+  where the assembly is not known exactly (the same error at every stop of the child:
+  :func:`twin.instruments.marker_pose.survey_loading`).
 - **cameras**: Tsai's eleven parameters (:func:`calib.tsai.tsai_vector`) of each camera, or
   of each calibration when the visits of one camera are not to be tied together.
 
@@ -60,6 +62,10 @@ class LedSighting:
         leds_level: (N, 3) LED positions in the station's levelled frame, m.
         covariance_level: (3N, 3N) their joint covariance (the marker pose's), m^2.
         pixels: (N, 2) where the camera found them, px.
+        child: the child whose LEDs they are.
+        survey_level: (3N, M) the LEDs' error in the levelled frame per unit of the (M,)
+            standard normal survey error of ``child``'s assembly, m; empty where it is
+            known exactly.
     """
 
     station: int
@@ -67,6 +73,8 @@ class LedSighting:
     leds_level: NDArray[np.float64]
     covariance_level: NDArray[np.float64]
     pixels: NDArray[np.float64]
+    child: str = ""
+    survey_level: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,15 +266,24 @@ class NetworkBuilder:
         leds_world: NDArray,
         covariance_world: NDArray,
         pixels: NDArray,
+        child: str = "",
+        survey_world: NDArray | None = None,
     ) -> None:
         """An LED stop measured from ``station`` and mapped to W with its estimate then:
-        (N, 3) LEDs in W, m, their (3N, 3N) covariance in W, (N, 2) pixels."""
+        (N, 3) LEDs in W, m, their (3N, 3N) covariance in W, (N, 2) pixels; the child and
+        the LEDs' (3N, M) loading in W on its marker survey error (None or empty: known
+        exactly)."""
         pose = self.stations[station]
         world = np.asarray(leds_world, dtype=float).reshape(-1, 3)
         turn = np.kron(np.eye(len(world)), rot_z(pose[0]))
         level = (world - pose[1:]) @ rot_z(pose[0])
         cov = turn.T @ np.asarray(covariance_world, dtype=float) @ turn
-        self.leds.append(LedSighting(station, camera, level, cov, np.asarray(pixels, float)))
+        survey = np.zeros((0, 0)) if survey_world is None else np.asarray(survey_world, float)
+        if survey.size:
+            survey = turn.T @ survey.reshape(3 * len(world), -1)
+        self.leds.append(
+            LedSighting(station, camera, level, cov, np.asarray(pixels, float), child, survey)
+        )
 
     def build(self) -> Network:
         """The network of everything added."""

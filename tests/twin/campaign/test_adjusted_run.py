@@ -159,3 +159,25 @@ def test_an_adjustment_that_fails_the_global_test_says_so_and_scales_its_stds(ru
         # Unscaled, the wrong weights give standard deviations about half the honest ones
         # (0.4 to 0.6 of them here: the stations' part stays); scaled, they are no smaller.
         assert np.all(ratio > 0.9), ratio
+
+
+def test_a_surveyed_markers_error_is_adjusted_from_the_log(tmp_path):
+    # The children's markers 3 mm off their drawing a coordinate, known to the campaign:
+    # the log's stops carry their loadings on each child's survey error, the adjustment
+    # takes those errors as unknowns, and its global test holds (without them the stated
+    # noise cannot explain the residuals: chi2 / dof of tens).
+    from twin.scenario.overrides import with_values
+
+    values = {"marker.survey_sigma_m": 0.003, "noise.marker_geometry_m": 0.003}
+    sc = with_values(loop_scenario(), values)
+    results = run_scenario(sc, tmp_path, fidelity="geometric", seed=11, report=False)
+    messages = read_log(tmp_path / "log.mcap").messages
+    network, _ = network_from_log(messages)
+    assert {s.child for s in network.led_sightings if s.survey_level.size} == {"child1", "child2"}
+    info = results["adjustment"]
+    assert info["status"] == "adjusted", info
+    assert 0.6 < info["variance_factor"] < 1.6, info
+    assert info["consistent"]
+    for c in results["adjusted_calibrations"]:
+        std = np.array([c["std"][k] for k in "xyz"])
+        assert c["truth"]["position_error_mm"] < 5e3 * np.linalg.norm(std)
