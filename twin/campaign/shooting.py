@@ -137,11 +137,23 @@ def shoot_at(
     return None
 
 
+def _turn_sense(points: NDArray[np.float64]) -> float:
+    """The sign of the turn from the first of three points to the second to the third,
+    seen from above (+1 counter-clockwise)."""
+    u, v = points[1, :2] - points[0, :2], points[2, :2] - points[0, :2]
+    return float(np.sign(u[0] * v[1] - u[1] * v[0]))
+
+
 def _pair_labels(
     points: NDArray[np.float64], cubes_body: NDArray[np.float64]
 ) -> tuple[tuple[int, ...], float]:
     """The labelling of 2 or 3 measured prisms that best fits the assembly's side lengths
-    (the triangle is scalene: its sides tell its corners apart), and the worst misfit, m."""
+    (the triangle is scalene: its sides tell its corners apart), and the worst misfit, m.
+
+    Three prisms are labelled only in the assembly's own sense of turn, seen from above
+    (the child stands upright): a mirrored labelling swaps two sides, which an assembly
+    built a few millimetres off its drawing can fit better than the true one where two
+    sides differ by little, and its pose would be upside down."""
     best: tuple[tuple[int, ...], float] = ((), np.inf)
     n = len(points)
     pairs = list(itertools.combinations(range(n), 2))
@@ -150,7 +162,10 @@ def _pair_labels(
     body = {
         (i, j): np.linalg.norm(cubes_body[i] - cubes_body[j]) for i in range(k) for j in range(k)
     }
+    sense = _turn_sense(points) if n == 3 else 0.0
     for labels in itertools.permutations(range(k), n):
+        if sense and _turn_sense(cubes_body[list(labels)]) != sense:
+            continue  # mirrored
         misfit = 0.0
         for a, b in pairs:
             misfit = max(misfit, abs(measured[a, b] - body[labels[a], labels[b]]))
