@@ -14,7 +14,11 @@
 - ``adjustment``: ``status`` (``adjusted``, ``nothing_to_add``, ``not_possible`` or
   ``failed``), a
   ``message``, what was measured twice (``redundancy``), the chi-square, its degrees of
-  freedom and their ratio, the unknowns, the solver's evaluations and its wall time.
+  freedom and their ratio, the unknowns, the solver's evaluations and its wall time; where
+  the children's marker assemblies are known only to their survey, ``marker_survey``: for
+  each child, where its LEDs stand off the drawing in the frame its cubes (as drawn)
+  define, and the standard deviations (mm): what a re-survey of that assembly's LEDs
+  against its cubes would find.
 """
 
 from __future__ import annotations
@@ -37,6 +41,8 @@ from twin.campaign.log_results import (
 )
 from twin.campaign.network_log import LogNetworkError, network_from_log
 from twin.campaign.records import CALIBRATION, DATASET, POINT
+from twin.instruments.marker import MarkerAssembly
+from twin.instruments.marker_pose import survey_covariance
 from twin.localization.adjustment import AdjustedNetwork, NothingToAdjustError, adjust_network
 from twin.truth import TRUTH_CAMERA
 
@@ -47,8 +53,10 @@ MIN_PIXEL_NOISE_PX = 1e-3
 def adjustment_settings(scenario: Any) -> dict[str, Any]:
     """What :func:`adjusted_results` needs of a scenario: each camera's pixel noise as the
     geometric and batch fidelities project it (at least :data:`MIN_PIXEL_NOISE_PX`), the
-    children's creep, the surveyed control points and the pixel pitch."""
+    children's creep, the surveyed control points, the pixel pitch and the marker
+    assembly."""
     return {
+        "marker": scenario.marker.assembly(),
         "pixel_noise_px": {
             c.name: max(scenario.projected_led_px(c.name), MIN_PIXEL_NOISE_PX)
             for c in scenario.cameras
@@ -71,6 +79,7 @@ def adjusted_results(
     child_creep_m: float = 0.0,
     control_points: Mapping[str, NDArray[np.float64]] | None = None,
     pixel_size_mm: float = 0.015,
+    marker: MarkerAssembly | None = None,
 ) -> dict[str, Any]:
     """Adjust a run's log and return its adjusted results (see the module text).
 
@@ -79,6 +88,8 @@ def adjusted_results(
         pixel_noise_px, cameras, child_creep_m, control_points: as
             :func:`twin.campaign.network_log.network_from_log`.
         pixel_size_mm: the sensor's pixel pitch, for kappa1 in 1/mm^2.
+        marker: the assembly as the campaign knew it (its drawing and survey), for the
+            children's adjusted survey errors (``marker_survey``).
     """
     messages = list(messages)
     t0 = time.perf_counter()
@@ -166,11 +177,34 @@ def adjusted_results(
                 4 * (len(network.stations) - 1)
                 + 3 * int((~network.known_targets).sum())
                 + 11 * len(network.cameras)
+                + sum(len(z) for z in adjusted.surveys.values())
             ),
             "evaluations": adjusted.evaluations,
             "wall_time_s": wall,
+            **_marker_survey(adjusted, marker, scale),
         },
     }
+
+
+def _marker_survey(
+    adjusted: AdjustedNetwork, marker: MarkerAssembly | None, scale: float
+) -> dict[str, Any]:
+    """``marker_survey``: each child's LEDs' offset from the drawing in the frame its cubes
+    define, ``C z`` (C the survey's factor, z its adjusted error), and its standard
+    deviations, mm; nothing where no survey error was adjusted."""
+    if not adjusted.surveys or marker is None or marker.survey_sigma == 0.0:
+        return {}
+    factor = np.linalg.cholesky(survey_covariance(marker))
+    out = {}
+    for child, z in sorted(adjusted.surveys.items()):
+        cov = scale * factor @ adjusted.survey_covariances[child] @ factor.T
+        out[child] = {
+            "leds_offset_mm": (1e3 * (factor @ z)).reshape(-1, 3).tolist(),
+            "leds_offset_std_mm": (1e3 * np.sqrt(np.maximum(np.diag(cov), 0.0)))
+            .reshape(-1, 3)
+            .tolist(),
+        }
+    return {"marker_survey": out}
 
 
 def _adjusted_points(
@@ -181,7 +215,10 @@ def _adjusted_points(
     for i in stops:
         s = network.led_sightings[i]
         pose = adjusted.stations[s.station]
-        pts.append(s.leds_level @ rot_z(pose[0]).T + pose[1:])
+        level = s.leds_level
+        if s.survey_level.size:  # where the child's adjusted survey puts its LEDs
+            level = level + (s.survey_level @ adjusted.surveys[s.child]).reshape(-1, 3)
+        pts.append(level @ rot_z(pose[0]).T + pose[1:])
         pix.append(s.pixels)
     if not pts:
         return np.zeros((0, 3)), np.zeros((0, 2))

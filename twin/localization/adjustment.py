@@ -37,7 +37,7 @@ unless asked (``require_redundancy=False``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -68,6 +68,10 @@ class AdjustedNetwork:
         chi2: sum of the squared whitened residuals at the solution. dof: residuals minus
             unknowns. evaluations: residual evaluations the solver made.
         redundancy: what the network measured twice, in words.
+        surveys: each surveyed child's adjusted (M,) survey error, in units of its
+            loadings (``LedSighting.survey_level``: standard normal a priori); its LEDs
+            stand ``S z`` off where their stops placed them.
+        survey_covariances: their (M, M) covariances.
     """
 
     stations: NDArray[np.float64]
@@ -79,6 +83,8 @@ class AdjustedNetwork:
     dof: int
     evaluations: int
     redundancy: tuple[str, ...]
+    surveys: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    survey_covariances: dict[str, NDArray[np.float64]] = field(default_factory=dict)
 
     @property
     def variance_factor(self) -> float:
@@ -340,7 +346,12 @@ def adjust_network(network: Network, *, require_redundancy: bool = True) -> Adju
     x, evaluations = _levenberg_marquardt(problem, problem.layout.pack(network))
     res, jac = problem.residuals_and_jacobian(x)
     stations, targets, cameras = problem.layout.unpack(x, network)
-    cov_cam, cov_st = _covariances(jac, problem.layout, len(network.cameras))
+    cov_cam, cov_st, cov_survey = _covariances(jac, problem.layout, len(network.cameras))
+    layout = problem.layout
+    surveys = {
+        child: x[col : col + layout.survey_width[child]].copy()
+        for child, col in layout.survey_column.items()
+    }
     return AdjustedNetwork(
         stations=stations,
         targets=targets,
@@ -351,6 +362,8 @@ def adjust_network(network: Network, *, require_redundancy: bool = True) -> Adju
         dof=int(problem.size - problem.layout.size),
         evaluations=evaluations,
         redundancy=tuple(redundancy),
+        surveys=surveys,
+        survey_covariances=cov_survey,
     )
 
 
@@ -391,13 +404,15 @@ def _levenberg_marquardt(
 
 def _covariances(
     jac: sp.csr_matrix, layout: _Layout, n_cameras: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(C, 11, 11) camera and (K, 4, 4) station blocks of ``(J^T J)^-1``."""
+) -> tuple[NDArray[np.float64], NDArray[np.float64], dict[str, NDArray[np.float64]]]:
+    """(C, 11, 11) camera, (K, 4, 4) station and each child's (M, M) survey blocks of
+    ``(J^T J)^-1``."""
     normal = (jac.T @ jac).tocsc()
     lu = splu(normal)
     cam_cols = layout.camera_start + np.arange(N_TSAI * n_cameras)
     st_cols = np.arange(STATION_DOF * (layout.n_stations - 1))
-    cols = np.concatenate([cam_cols, st_cols])
+    survey_cols = np.arange(layout.camera_end, layout.size)
+    cols = np.concatenate([cam_cols, st_cols, survey_cols])
     rhs = np.zeros((layout.size, len(cols)))
     rhs[cols, np.arange(len(cols))] = 1.0
     inv = lu.solve(rhs)
@@ -411,4 +426,10 @@ def _covariances(
         idx = STATION_DOF * (k - 1) + np.arange(STATION_DOF)
         local = len(cam_cols) + idx
         stations[k] = inv[np.ix_(idx, local)]
-    return 0.5 * (cam + cam.transpose(0, 2, 1)), stations
+    surveys = {}
+    first = len(cam_cols) + len(st_cols) - layout.camera_end
+    for child, col in layout.survey_column.items():
+        idx = col + np.arange(layout.survey_width[child])
+        block = inv[np.ix_(idx, first + idx)]
+        surveys[child] = 0.5 * (block + block.T)
+    return 0.5 * (cam + cam.transpose(0, 2, 1)), stations, surveys

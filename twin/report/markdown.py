@@ -514,6 +514,30 @@ def _adjustment(results: Results) -> list[str]:
         ),
         rows,
     )
+    return [*lines, "", *_marker_survey(info)]
+
+
+def _marker_survey(info: Mapping[str, Any]) -> list[str]:
+    """The children's adjusted marker surveys: each LED's offset from the drawing."""
+    survey = mapping(info.get("marker_survey"))
+    if not survey:
+        return []
+    lines = [
+        "Each child's marker assembly is known only to its survey: the adjustment solved "
+        "where its LEDs stand off the drawing, in the frame its cubes (as drawn) define "
+        "(mm, +/- one standard deviation).",
+        "",
+    ]
+    rows = []
+    for child, entry in survey.items():
+        offsets = mapping(entry).get("leds_offset_mm", [])
+        stds = mapping(entry).get("leds_offset_std_mm", [])
+        for k, (offset, std) in enumerate(zip(offsets, stds, strict=True)):
+            cells = (
+                f"{fmt(v, '.1f')} +/- {fmt(e, '.1f')}" for v, e in zip(offset, std, strict=True)
+            )
+            rows.append((str(child), str(k), *cells))
+    lines += table(("child", "LED", "x", "y", "z"), rows)
     return [*lines, ""]
 
 
