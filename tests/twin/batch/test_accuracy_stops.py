@@ -72,26 +72,45 @@ def test_the_array_estimators_give_the_scalar_numbers(accuracy_plan):
     close(w.predicted_calibration, v.predicted_calibration, rtol=1e-5)
 
 
-def test_the_points_part_of_the_prediction_is_the_campaigns(accuracy_plan):
-    # The batch places each LED point in the block of its stop by its LED; the campaign's
-    # prediction (twin.montecarlo.prediction.points_variance) pads each stop's block of the
-    # LEDs it found. The same points give the same variance.
-    quiet = accuracy_plan.scenario.without_noise().noise
-    run = BatchRun(accuracy_plan, [5], noise=quiet)
+def _points_part(plan):
+    """One noise-free trial's points part of the prediction, from the batch (with and
+    without the stops' shared survey loadings) and from the campaign's records of its
+    stops (:func:`twin.montecarlo.prediction.points_variance`); and those records."""
+    quiet = plan.scenario.without_noise().noise
+    run = BatchRun(plan, [5], noise=quiet)
     run.run()
-    (cal,) = accuracy_plan.calibrations
+    (cal,) = plan.calibrations
     data = run.datasets[("visit", cal.camera, cal.visit)]
     points, pixels = data.arrays(cal.points)
     est = Vectorised()
     cams = est.calibrate(points, pixels, cal.nominal.image_size, cal.nominal)
     slots = data.slots()[: cal.points]
-    got = np.trace(est.points_effect(cams, points, data.stops(), slots)[0])
+    got = np.trace(est.points_effect(cams, points, data.stops(), slots, data.shared())[0])
+    alone = np.trace(est.points_effect(cams, points, data.stops(), slots)[0])
     stops = []
-    for world, cov, leds in zip(data.points, data.covariances, data.leds, strict=True):
+    for world, cov, leds, child, load in zip(
+        data.points, data.covariances, data.leds, data.children, data.surveys, strict=True
+    ):
         rows = coordinate_rows(leds[None])[0]
-        stops.append({"leds_world": world[0], "leds_covariance": cov[0][np.ix_(rows, rows)]})
-    assert len({len(s["leds_world"]) for s in stops}) > 1, "stops with fewer LEDs"
+        stops.append(
+            {
+                "child": child,
+                "leds_world": world[0],
+                "leds_covariance": cov[0][np.ix_(rows, rows)],
+                "survey_loading": load[0][rows] if load.size else [],
+            }
+        )
     want = points_variance(camera_to_dict(cams.cameras.camera(0)), stops, cal.points)
+    return got, alone, want, stops
+
+
+def test_the_points_part_of_the_prediction_is_the_campaigns(accuracy_plan):
+    # The batch places each LED point in the block of its stop by its LED; the campaign's
+    # prediction pads each stop's block of the LEDs it found. The same points give the same
+    # variance.
+    got, alone, want, stops = _points_part(accuracy_plan)
+    assert len({len(s["leds_world"]) for s in stops}) > 1, "stops with fewer LEDs"
+    assert got == alone  # the marker is known exactly
     np.testing.assert_allclose(got, want, rtol=1e-9)
 
 
@@ -106,33 +125,8 @@ def test_the_survey_part_of_the_prediction_is_the_campaigns(surveyed_plan):
     # Each stop's LEDs load on their child's surveying error (turned with the child): the
     # batch's layout of the loadings gives what the campaign's prediction gives from the
     # data points' survey_loading.
-    quiet = surveyed_plan.scenario.without_noise().noise
-    run = BatchRun(surveyed_plan, [5], noise=quiet)
-    run.run()
-    (cal,) = surveyed_plan.calibrations
-    data = run.datasets[("visit", cal.camera, cal.visit)]
-    points, pixels = data.arrays(cal.points)
-    est = Vectorised()
-    cams = est.calibrate(points, pixels, cal.nominal.image_size, cal.nominal)
-    slots = data.slots()[: cal.points]
-    shared = data.shared()
-    assert shared is not None
-    got = np.trace(est.points_effect(cams, points, data.stops(), slots, shared)[0])
-    alone = np.trace(est.points_effect(cams, points, data.stops(), slots)[0])
-    stops = []
-    for world, cov, leds, child, load in zip(
-        data.points, data.covariances, data.leds, data.children, data.surveys, strict=True
-    ):
-        rows = coordinate_rows(leds[None])[0]
-        stops.append(
-            {
-                "child": child,
-                "leds_world": world[0],
-                "leds_covariance": cov[0][np.ix_(rows, rows)],
-                "survey_loading": load[0][rows],
-            }
-        )
-    want = points_variance(camera_to_dict(cams.cameras.camera(0)), stops, cal.points)
+    got, alone, want, stops = _points_part(surveyed_plan)
+    assert all(len(s["survey_loading"]) for s in stops)
     np.testing.assert_allclose(got, want, rtol=1e-9)
     # A 2 mm survey moves the camera by more than the shots do.
     assert got > 2 * alone
