@@ -93,7 +93,7 @@ def main() -> None:
                 f"{1e3 * _rms(error):.1f}",
                 f"{1e3 * _rms(predicted):.1f}",
                 f"{_rms(error) / _rms(predicted):.2f}",
-                f"{100 * np.nanmean(error > 3 * predicted):.1f} %",
+                f"{100 * np.mean(error[v.calibrated] > 3 * predicted[v.calibrated]):.1f} %",
                 f"{1e3 * _rms(a.position_error):.1f}",
                 f"{1e3 * _rms(a.predicted):.1f}",
                 f"{_rms(a.position_error) / _rms(a.predicted):.2f}",

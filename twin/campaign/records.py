@@ -99,11 +99,12 @@ class DataPoint:
         partial: whether the stop's plan takes a point from the LEDs the camera finds where
             it does not find them all (:attr:`twin.campaign.strategy.StopPlan.partial`);
             else such a stop gives no point.
-        survey_loading: (3 N_led, M) the error of ``leds_world`` from the marker
-            assembly's surveying error, m, per unit of an (M,) standard normal vector that
-            every stop of this child shares (:func:`twin.instruments.marker_pose.
-            survey_loading`): two stops s, t of the child add ``L_s L_t^T`` to their joint
-            covariance. Empty when the assembly is known exactly.
+        survey_loading: (3 N_led, M) where the LEDs truly stand off ``leds_world`` for
+            the marker assembly's surveying error, m, per unit of an (M,) standard normal
+            vector z that every stop of this child shares (they stand at ``leds_world +
+            L z``: :func:`twin.instruments.marker_pose.survey_loading`): two stops s, t of
+            the child add ``L_s L_t^T`` to their joint covariance. Empty when the assembly
+            is known exactly.
     """
 
     timestamp: float

@@ -137,11 +137,20 @@ def shoot_at(
     return None
 
 
+SENSE_FROM_ABOVE = 0.5
+"""Least share of a cube triangle's area that must show from above for its sense of turn
+to label it: a triangle steeper than 60 degrees (an assembly whose cubes stand one above
+another) is labelled by its sides alone."""
+
+
 def _turn_sense(points: NDArray[np.float64]) -> float:
     """The sign of the turn from the first of three points to the second to the third,
-    seen from above (+1 counter-clockwise)."""
-    u, v = points[1, :2] - points[0, :2], points[2, :2] - points[0, :2]
-    return float(np.sign(u[0] * v[1] - u[1] * v[0]))
+    seen from above (+1 counter-clockwise), or 0 where less than
+    :data:`SENSE_FROM_ABOVE` of their triangle's area shows from above."""
+    normal = np.cross(points[1] - points[0], points[2] - points[0])
+    if abs(normal[2]) < SENSE_FROM_ABOVE * np.linalg.norm(normal):
+        return 0.0
+    return float(np.sign(normal[2]))
 
 
 def _pair_labels(
@@ -153,8 +162,8 @@ def _pair_labels(
     Three prisms are labelled only in the assembly's own sense of turn, seen from above
     (the child stands upright): a mirrored labelling swaps two sides, which an assembly
     built a few millimetres off its drawing can fit better than the true one where two
-    sides differ by little, and its pose would be upside down."""
-    best: tuple[tuple[int, ...], float] = ((), np.inf)
+    sides differ by little, and its pose would be upside down. A triangle that shows
+    little from above (:func:`_turn_sense` 0) is labelled by its sides alone."""
     n = len(points)
     pairs = list(itertools.combinations(range(n), 2))
     measured = {(a, b): np.linalg.norm(points[a] - points[b]) for a, b in pairs}
@@ -162,7 +171,8 @@ def _pair_labels(
     body = {
         (i, j): np.linalg.norm(cubes_body[i] - cubes_body[j]) for i in range(k) for j in range(k)
     }
-    sense = _turn_sense(points) if n == 3 else 0.0
+    sense = _turn_sense(points) if n == 3 and _turn_sense(cubes_body) else 0.0
+    best: tuple[tuple[int, ...], float] = ((), np.inf)
     for labels in itertools.permutations(range(k), n):
         if sense and _turn_sense(cubes_body[list(labels)]) != sense:
             continue  # mirrored

@@ -224,8 +224,9 @@ def survey_covariance(marker: MarkerAssembly) -> NDArray[np.float64]:
 
 
 def survey_loading(marker: MarkerAssembly, body2world: ArrayLike) -> NDArray[np.float64]:
-    """(..., 3 N_led, 3 N_led) the LEDs' placement error in W at one stop, m, per unit of a
-    standard normal vector shared by every stop of the child: ``kron(I, R) C`` with
+    """(..., 3 N_led, 3 N_led) where the LEDs truly stand off where a stop placed them, in
+    W, m, per unit of a standard normal vector z shared by every stop of the child (the
+    LEDs stand at their placement + ``L z``): ``kron(I, R) C`` with
     ``C C^T`` the :func:`survey_covariance` and R the marker's (..., 3, 3) ``body2world``
     rotation at the stop. Zeros for an assembly known exactly (``survey_sigma`` 0).
 

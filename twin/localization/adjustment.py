@@ -186,24 +186,31 @@ class _Problem:
 
     def _survey_loadings(self, leds: tuple[LedSighting, ...]) -> None:
         """Each LED's (3, M) loading on its child's survey error in the levelled frame and
-        the first column of that error (-1: known exactly)."""
+        the (M,) columns of that error (-1: none, where the assembly is known exactly or
+        the child's error has fewer than M components)."""
         width = max(self.layout.survey_width.values(), default=0)
         n = len(self.l_level)
         self.l_survey = np.zeros((n, 3, width))
-        self.l_survey_column = np.full(n, -1)
+        self.l_survey_columns = np.full((n, width), -1)
         at = 0
         for s in leds:
             k = len(s.pixels)
             if s.survey_level.size:
                 m = s.survey_level.shape[1]
+                if m != self.layout.survey_width[s.child]:
+                    raise ValueError(
+                        f"the stops of {s.child} load on {self.layout.survey_width[s.child]} "
+                        f"and {m} survey components"
+                    )
                 self.l_survey[at : at + k, :, :m] = s.survey_level.reshape(k, 3, m)
-                self.l_survey_column[at : at + k] = self.layout.survey_column[s.child]
+                self.l_survey_columns[at : at + k, :m] = self.layout.survey_column[
+                    s.child
+                ] + np.arange(m)
             at += k
 
     def _survey_errors(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """(N, M) each LED's child's survey error in ``x`` (zeros where known exactly)."""
-        width = self.l_survey.shape[2]
-        cols = self.l_survey_column[:, None] + np.arange(width)
+        cols = self.l_survey_columns
         return np.where(cols >= 0, x[np.maximum(cols, 0)], 0.0)
 
     def _led_whiteners(self) -> list[NDArray[np.float64]]:
@@ -297,8 +304,7 @@ class _Problem:
             turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1] = c, -s, s, c
             turn[:, 2, 2] = 1.0
             d_survey = np.einsum("nij,njk,nkm->nim", d_world, turn, self.l_survey)
-            z_cols = self.l_survey_column[:, None] + np.arange(self.l_survey.shape[2])
-            add(first, d_survey, np.where(self.l_survey_column[:, None] >= 0, z_cols, -1))
+            add(first, d_survey, self.l_survey_columns)
             # The prior of the survey errors: z itself (standard normal).
             z = x[self.layout.camera_end :]
             raw[self.rows_prior :] = z

@@ -94,3 +94,14 @@ def test_the_labels_do_not_depend_on_the_order_the_prisms_answered():
     assert shots is not None
     measured = np.array([s.to_cartesian() for s in shots])
     np.testing.assert_allclose(measured, prisms, atol=1e-3)
+
+
+def test_cubes_standing_one_above_another_are_labelled_by_their_sides():
+    # A triangle in a vertical plane shows no sense of turn from above: its sides label it.
+    upright = np.array([[0.1, 0.0, 1.4], [-0.1, 0.0, 1.8], [0.0, 0.0, 1.1]])
+    pose = rot_z(0.5), np.array([3.0, -1.0, -0.4])
+    prisms = upright @ pose[0].T + pose[1]
+    shots = shoot_cubes(_Prisms(prisms), prisms, 2, _Report(), upright)
+    assert shots is not None
+    measured = np.array([s.to_cartesian() for s in shots])
+    np.testing.assert_allclose(measured, prisms, atol=1e-3)

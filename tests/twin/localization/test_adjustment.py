@@ -99,3 +99,44 @@ def test_a_control_point_seen_from_one_station_adds_nothing():
     )
     with pytest.raises(NothingToAdjustError):
         adjust_network(dataclasses.replace(net, point_sightings=once))
+
+
+def test_the_survey_unknowns_derivatives_are_the_residuals():
+    # Each stop loads on its child's survey error (two children, of 12 and 6 components):
+    # the Jacobian's columns for those unknowns, and for the stations they turn with, are
+    # the residuals' central differences.
+    from twin.localization.adjustment import _Problem
+
+    loop = make_loop(np.random.default_rng(5), control=True)
+    rng = np.random.default_rng(6)
+    sightings = tuple(
+        dataclasses.replace(
+            s,
+            child=f"child{1 + k % 2}",
+            survey_level=rng.normal(0.0, 2e-3, (s.leds_level.size, 12 if k % 2 == 0 else 6)),
+        )
+        for k, s in enumerate(loop.network.led_sightings)
+    )
+    # The loop's cameras are seen from stations facing east and west: turn every station
+    # (the derivatives hold wherever the residuals are taken).
+    stations = loop.network.stations.copy()
+    stations[:, 0] += 1.2
+    net = dataclasses.replace(loop.network, led_sightings=sightings, stations=stations)
+    yaws = stations[[s.station for s in sightings], 0]
+    assert np.abs(np.sin(yaws)).min() > 0.9
+    problem = _Problem(net)
+    x = problem.layout.pack(net)
+    assert problem.layout.size - problem.layout.camera_end == 18
+    x[problem.layout.camera_end :] = rng.normal(0.0, 1.0, 18)
+    _, jac = problem.residuals_and_jacobian(x)
+    columns = list(range(problem.layout.camera_end, problem.layout.size))
+    columns += [0, 4, 8]  # the yaw of stations 1, 2 and 3
+    for c in columns:
+        step = np.zeros_like(x)
+        step[c] = 1e-6
+        plus, _ = problem.residuals_and_jacobian(x + step)
+        minus, _ = problem.residuals_and_jacobian(x - step)
+        numeric = (plus - minus) / 2e-6
+        assert_allclose(jac[:, [c]].toarray().ravel(), numeric, rtol=1e-4, atol=1e-6)
+    # The prior: one residual a component, the component itself.
+    assert_allclose(problem.residuals_and_jacobian(x)[0][-18:], x[-18:])
