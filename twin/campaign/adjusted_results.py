@@ -181,21 +181,40 @@ def adjusted_results(
             ),
             "evaluations": adjusted.evaluations,
             "wall_time_s": wall,
-            **_marker_survey(adjusted, marker, scale),
+            **_marker_survey(network, adjusted, marker, scale),
         },
     }
 
 
+SURVEY_MATCH = 1e-6
+"""Relative difference between the logged survey loadings' size and the assembly's above
+which the log was not recorded with that assembly's survey."""
+
+
 def _marker_survey(
-    adjusted: AdjustedNetwork, marker: MarkerAssembly | None, scale: float
+    network: Any, adjusted: AdjustedNetwork, marker: MarkerAssembly | None, scale: float
 ) -> dict[str, Any]:
     """``marker_survey``: each child's LEDs' offset from the drawing in the frame its cubes
     define, ``C z`` (C the survey's factor, z its adjusted error), and its standard
-    deviations, mm; nothing where no survey error was adjusted."""
-    if not adjusted.surveys or marker is None or marker.survey_sigma == 0.0:
+    deviations, mm; nothing where no survey error was adjusted, and a message where the
+    assembly given is not the one the log's loadings were made with (a stop's loading is
+    C turned, so both have the same size)."""
+    if not adjusted.surveys or marker is None:
         return {}
-    factor = np.linalg.cholesky(survey_covariance(marker))
-    out = {}
+    factor = np.linalg.cholesky(survey_covariance(marker)) if marker.survey_sigma else None
+    # A stop that showed every LED: its loading has the size of C.
+    whole = [s.survey_level for s in network.led_sightings if s.survey_level.size]
+    whole = [load for load in whole if factor is not None and load.shape == factor.shape]
+    if factor is None or (
+        whole
+        and not np.isclose(np.linalg.norm(whole[0]), np.linalg.norm(factor), rtol=SURVEY_MATCH)
+    ):
+        message = (
+            "the log's stops were recorded with another marker survey than the scenario's "
+            "marker.survey_sigma_m: the LEDs' offsets are not reported"
+        )
+        return {"marker_survey": {"message": message}}
+    out: dict[str, Any] = {}
     for child, z in sorted(adjusted.surveys.items()):
         cov = scale * factor @ adjusted.survey_covariances[child] @ factor.T
         out[child] = {

@@ -522,6 +522,8 @@ def _marker_survey(info: Mapping[str, Any]) -> list[str]:
     survey = mapping(info.get("marker_survey"))
     if not survey:
         return []
+    if "message" in survey:
+        return [f"Marker survey: {survey['message']}.", ""]
     lines = [
         "Each child's marker assembly is known only to its survey: the adjustment solved "
         "where its LEDs stand off the drawing, in the frame its cubes (as drawn) define "

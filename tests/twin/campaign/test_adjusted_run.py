@@ -207,3 +207,11 @@ def test_a_surveyed_markers_error_is_adjusted_from_the_log(tmp_path):
     report = render_markdown(sc, results, {}, tmp_path)
     first = survey["child1"]["leds_offset_mm"][0][0]
     assert f"| child1 | 0 | {first:.1f} +/- " in report
+    # Adjusted again under a scenario that states another survey: the offsets would be
+    # scaled by the wrong factor, so they are not reported.
+    other = with_values(sc, {"marker.survey_sigma_m": 0.002})
+    again = adjusted_results(messages, **adjustment_settings(other))["adjustment"]
+    assert "another marker survey" in again["marker_survey"]["message"]
+    assert "Marker survey: the log's stops" in render_markdown(
+        other, {**results, "adjustment": again}, {}, tmp_path
+    )
