@@ -1,6 +1,6 @@
 """The Gymnasium environment's speed: decisions (steps) per second on the paper's hall.
 
-Run: ``.venv/bin/python benchmarks/bench_env.py [--seconds S]``
+Run: ``.venv/bin/python benchmarks/bench_env.py [--seconds S] [--planner NAME...]``
 
 For vector sizes 1, 8 and 64 in one process, as the environment's own vector (``batched``:
 ``gymnasium.make_vec``'s default, episodes that share their moves share their batch) and as
@@ -12,14 +12,17 @@ S seconds of wall time (default 30):
 - ``paper``: the paper's policy, whose moves repeat from episode to episode: after the
   first episode its campaign is read from the site's memo and only the noise runs.
 
-The ratio is against one environment with the same policy, measured in the same run; the
-absolute figure (steps/s per core, the target being 1000 with random moves) is printed with
-the machine's load average. Resets are counted in the time, not as steps.
+Each for the environment's planners (``--planner``, default both): ``campaign`` (the
+campaign itself) and ``stands`` (a table of the site, :mod:`twin.envs.stands`).
 
-Then ``agreement`` (``--episodes N``, default 300): N episodes of the paper's policy played
-step by step in the environment against ``twin montecarlo --fidelity batch --strategy
-paper`` with N trials: per visit the RMS camera position error and their ratio (the issue
-asks for 15 %).
+The ratio is against one environment with the same policy and planner, measured in the
+same run; the absolute figure (steps/s per core, the target being 1000 with random moves) is
+printed with the machine's load average. Resets are counted in the time, not as steps.
+
+Then ``agreement`` (``--episodes N``, default 300): for each planner, N episodes of the
+paper's policy played step by step in the environment against ``twin montecarlo --fidelity
+batch --strategy paper`` with N trials: per visit the RMS camera position error and their
+ratio (the issue asks for 15 %).
 """
 
 from __future__ import annotations
@@ -51,20 +54,26 @@ def _make() -> CpsCampaignEnv:
     return CpsCampaignEnv(HALL)
 
 
+def _make_stands() -> CpsCampaignEnv:
+    return CpsCampaignEnv(HALL, planner="stands")
+
+
 def load() -> str:
     one, five, fifteen = os.getloadavg()
     return f"{one:.2f} {five:.2f} {fifteen:.2f}"
 
 
-def measure(mode: str, n: int, policy: str, seconds: float) -> tuple[float, int]:
+def measure(
+    mode: str, n: int, policy: str, seconds: float, planner: str = "campaign"
+) -> tuple[float, int]:
     """(steps/s, steps) of ``n`` environments of ``mode`` playing ``policy`` for
-    ``seconds``."""
+    ``seconds`` (the site's table, for ``stands``, is made before the clock starts)."""
     clear_memos()
     if mode == "batched":
-        envs = gymnasium.make_vec(ENV_ID, num_envs=n, scenario=str(HALL)).unwrapped
+        envs = gymnasium.make_vec(ENV_ID, num_envs=n, scenario=str(HALL), planner=planner).unwrapped
     else:
         cls = gymnasium.vector.SyncVectorEnv if mode == "sync" else gymnasium.vector.AsyncVectorEnv
-        envs = cls([_make] * n)
+        envs = cls([_make_stands if planner == "stands" else _make] * n)
     rng = np.random.default_rng(0)
     try:
         _, info = envs.reset(seed=list(range(n)))
@@ -97,9 +106,9 @@ def measure(mode: str, n: int, policy: str, seconds: float) -> tuple[float, int]
         envs.close()
 
 
-def agreement(episodes: int, console: Console) -> None:
+def agreement(episodes: int, console: Console, planner: str = "campaign") -> None:
     """The paper's policy in the environment against ``twin montecarlo --fidelity batch``."""
-    env = CpsCampaignEnv(HALL)
+    env = CpsCampaignEnv(HALL, planner=planner)
     ours: dict[tuple[str, int], list[float]] = {}
     start = time.perf_counter()
     steps = 0
@@ -120,7 +129,9 @@ def agreement(episodes: int, console: Console) -> None:
     for row in rows:
         if row["config"] == "all":
             theirs.setdefault((row["camera"], row["visit"]), []).append(row["position_error_mm"])
-    table = Table(title=f"the paper's policy, {episodes} episodes, against twin montecarlo")
+    table = Table(
+        title=f"the paper's policy ({planner}), {episodes} episodes, against twin montecarlo"
+    )
     for name in ("visit", "environment RMS mm", "montecarlo RMS mm", "ratio"):
         table.add_column(name, justify="right")
     for visit, values in ours.items():
@@ -138,32 +149,38 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--episodes", type=int, default=300)
+    parser.add_argument("--planner", nargs="+", default=["campaign", "stands"])
     args = parser.parse_args()
     console = Console(width=120)
     table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
-    for name in ("vector", "envs", "policy", "steps", "steps/s", "x one env", "load 1/5/15"):
+    columns = ("planner", "vector", "envs", "policy", "steps", "steps/s", "x one env", "load")
+    for name in columns:
         table.add_column(name, justify="right")
-    base: dict[str, float] = {}  # one environment of the environment's own vector
-    for policy in ("paper", "random"):
-        for mode, n in (
-            ("batched", 1),
-            ("batched", 8),
-            ("batched", 64),
-            ("sync", 8),
-            ("sync", 64),
-            ("async", 2),
-        ):
-            if policy == "paper" and mode == "async":
-                continue  # the policy reads the environment: it runs in the same process
-            rate, steps = measure(mode, n, policy, args.seconds)
-            base.setdefault(policy, rate)
-            table.add_row(mode, str(n), policy, str(steps), f"{rate:.1f}",
-                          f"{rate / base[policy]:.2f}", load())  # fmt: skip
-            console.print(f"{mode} {n} {policy}: {rate:.1f} steps/s")
+    base: dict[tuple[str, str], float] = {}  # one environment of the environment's own vector
+    for planner in args.planner:
+        if planner == "stands":
+            _make_stands().reset(seed=0)  # the site's table: once per process
+        for policy in ("paper", "random"):
+            for mode, n in (
+                ("batched", 1),
+                ("batched", 8),
+                ("batched", 64),
+                ("sync", 8),
+                ("sync", 64),
+                ("async", 2),
+            ):
+                if policy == "paper" and mode == "async":
+                    continue  # the policy reads the environment: it runs in the same process
+                rate, steps = measure(mode, n, policy, args.seconds, planner)
+                base.setdefault((planner, policy), rate)
+                table.add_row(planner, mode, str(n), policy, str(steps), f"{rate:.1f}",
+                              f"{rate / base[(planner, policy)]:.2f}", load())  # fmt: skip
+                console.print(f"{planner} {mode} {n} {policy}: {rate:.1f} steps/s")
     console.print(table)
     console.print("target: 1000 steps/s with random moves on one core")
     if args.episodes > 0:  # --episodes 0: the speed table only
-        agreement(args.episodes, console)
+        for planner in args.planner:
+            agreement(args.episodes, console, planner)
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
@@ -246,6 +247,7 @@ class PlanSession:
         )
         quiet = scenario.without_noise()
         world = build_world(quiet)
+        self._probe: NDArray[np.float64] | None = None  # the world's state for truth_at
         self._recorder = _Recorder()
         self._sim = build_sim_rig(world, "geometric", advertised=scenario.noise)
         try:
@@ -326,6 +328,35 @@ class PlanSession:
             led_radii=self._radii,
             planned_visits=tuple(self._parser.visits),
         )
+
+    def truth_at(self, robot: str, pose: NDArray[np.float64]) -> RobotTruth:
+        """Where ``robot`` truly stands when placed at the planar ``pose`` (3,) (x m, y m,
+        yaw rad in W): its marker or its instrument on the floor there, tilt included.
+
+        The robot is moved in the session's world: ask this of a session whose campaign is
+        over (a probe of the site), not of one that goes on. Each answer starts from the
+        world as it was at the first question (the robots where the campaign left them), so
+        that it does not depend on the questions asked before.
+        """
+        sim = self._sim
+        model, data = sim.world.model, sim.world.data
+        what = mujoco.mjtState.mjSTATE_INTEGRATION
+        if self._probe is None:
+            self._probe = np.empty(mujoco.mj_stateSize(model, what))
+            mujoco.mj_getState(model, data, self._probe, what)
+        mujoco.mj_setState(model, data, self._probe, what)
+        mujoco.mj_forward(model, data)
+        for name in sim.world.robots:  # at rest where they stand, wheels held from there
+            sim.world.driving.stop(name)
+            sim.world.driving.put_down(name)
+        mj = sim.frame.pose_to_mujoco(np.asarray(pose, dtype=float).reshape(3))
+        sim.world.place(robot, mj[:2], float(mj[2]), hold_others=True)
+        return _truth(sim, robot)
+
+    def max_speed(self, robot: str) -> float:
+        """The robot's top speed, m/s (the geometric clock counts a drive's straight travel
+        at it)."""
+        return float(self._sim.world.robots[robot].platform.max_speed)
 
     def close(self) -> None:
         """Free the world."""

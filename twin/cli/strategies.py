@@ -59,6 +59,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the parent's travel allowed per episode, m (default 2.5 route lengths)",
     )
     p.add_argument(
+        "--planner",
+        choices=("campaign", "stands"),
+        default="campaign",
+        help=(
+            "how the moves are played: 'campaign' (the campaign itself, default) or "
+            "'stands' (a table of the site: fast, see the README)"
+        ),
+    )
+    p.add_argument(
         "--out", type=Path, help="output folder, empty or new (default: out/SITE-strategies)"
     )
     arguments.add_overwrite(p)
@@ -98,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
                 args.seed,
                 progress=lambda name, done: bar.update(tasks[name], completed=done),
                 budget_m=args.budget,
+                planner=args.planner,
             )
         except (ValueError, RuntimeError) as exc:
             console.print(f"[red]error:[/red] {exc}", markup=True)

@@ -54,10 +54,11 @@ from twin.envs.observation import (
 )
 from twin.envs.planner import CampaignPlanner
 from twin.envs.sites import random_site
+from twin.envs.stands import StandPlanner, rounded_std
 from twin.scenario import load_scenario
 from twin.scenario.schema import Scenario
 
-__all__ = ["REWARD_MODES", "CpsCampaignEnv"]
+__all__ = ["PLANNERS", "REWARD_MODES", "CpsCampaignEnv"]
 
 REWARD_MODES = ("predicted", "truth")
 """The rewards an environment can give (see the module)."""
@@ -82,6 +83,11 @@ _EPISODE_STATE = frozenset(
     }
 )
 """What pickling leaves out and rebuilds by replaying the episode's moves."""
+
+PLANNERS = ("campaign", "stands")
+"""How an environment plays its campaign: ``campaign`` runs the campaign itself for each
+new sequence of moves (:mod:`twin.envs.planner`); ``stands`` reads the moves from a table of
+the site, for speed (:mod:`twin.envs.stands`, with what it leaves out)."""
 
 RANDOM = "random"
 """``scenario`` for a random site at each reset."""
@@ -113,6 +119,8 @@ class CpsCampaignEnv(gym.Env):
             camera error per metre) and of time (per second).
         uncalibrated_error_mm: the error counted for a camera not calibrated, mm.
         layout: the moves (default :class:`MoveLayout` with ``max_stations``).
+        planner: one of :data:`PLANNERS`: ``campaign`` (default: the campaign itself) or
+            ``stands`` (a table of the site: fast enough for random moves).
     """
 
     metadata = {  # noqa: RUF012  (Gymnasium's convention: a class attribute)
@@ -134,7 +142,10 @@ class CpsCampaignEnv(gym.Env):
         cost_per_s: float = 0.0,
         uncalibrated_error_mm: float = 1000.0,
         layout: MoveLayout | None = None,
+        planner: str = "campaign",
     ) -> None:
+        if planner not in PLANNERS:
+            raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -155,6 +166,7 @@ class CpsCampaignEnv(gym.Env):
         if max_cameras < 1:
             raise ValueError(f"max_cameras must be >= 1, got {max_cameras}")
         self.layout = layout if layout is not None else MoveLayout(max_stations=max_stations)
+        self.planner_name = planner
         self.max_cameras = max_cameras
         self.default_scenario = _scenario(scenario)
         self.render_mode = render_mode
@@ -166,7 +178,7 @@ class CpsCampaignEnv(gym.Env):
         self.uncalibrated_error_mm = uncalibrated_error_mm
         self.action_space = spaces.Discrete(self.layout.size)
         self.observation_space = observation_space(max_cameras, self.layout.max_stations)
-        self.planner: CampaignPlanner | None = None
+        self.planner: CampaignPlanner | StandPlanner | None = None
         self.batch: BatchRun | None = None
         self.scenario: Scenario | None = None
         self._free: FreeSpace | None = None
@@ -220,7 +232,12 @@ class CpsCampaignEnv(gym.Env):
         budget = self.budget_m
         if budget is None:
             budget = BUDGET_FACTOR * float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
-        planner = CampaignPlanner(scenario, self.layout, budget)  # may refuse the site
+        planner: CampaignPlanner | StandPlanner
+        if self.planner_name == "stands":
+            planner = StandPlanner(scenario, self.layout, budget)  # may refuse the site
+            planner.parent_std = self._parent_std
+        else:
+            planner = CampaignPlanner(scenario, self.layout, budget)  # may refuse the site
         self._close_episode()
         self.planner = planner
         self.scenario = scenario
@@ -420,6 +437,11 @@ class CpsCampaignEnv(gym.Env):
             )
             for j, cam in enumerate(self.scenario.cameras)
         ]
+
+    def _parent_std(self) -> float:
+        """The trial's parent horizontal standard deviation, rounded (see
+        :func:`twin.envs.stands.rounded_std`), m."""
+        return rounded_std(self._now().parent_covariance[self._row])
 
     def _mean_predicted_mm(self) -> float:
         known, row = self._now(), self._row

@@ -172,27 +172,30 @@ class CpsCampaignVectorEnv(VectorEnv):
             self._start(resetting, [None] * len(resetting), None)
         outcomes: dict[int, tuple[int, float, dict[str, Any] | None]] = {}
         for group in list(self._groups):
-            parts: dict[int, list[int]] = {}
+            # Members that take the same steps stay together (the same move gives the same
+            # steps, unless the planner weighs it by the trial's own estimates).
+            parts: dict[tuple[int, int], list[int]] = {}
+            taken_steps: dict[tuple[int, int], tuple[int, tuple[Step, ...]]] = {}
             fallbacks: dict[int, dict[str, Any] | None] = {}
             for k in group.members:
                 if k in resetting:
                     continue
                 taken, fallbacks[k] = resolved[k]
-                parts.setdefault(taken, []).append(k)
+                planner = self.envs[k].planner
+                assert planner is not None
+                steps = planner.act(taken)
+                taken_steps[(taken, id(steps))] = (taken, steps)
+                parts.setdefault((taken, id(steps)), []).append(k)
             if not parts:
                 continue
             # The largest part keeps the batch; the others split off first, from the
             # group's steps so far.
             largest = max(parts, key=lambda a: len(parts[a]))
             order = [a for a in parts if a != largest] + [largest]
-            for taken in order:
-                members = parts[taken]
-                target = group if taken == largest else self._split(group, members)
-                steps: tuple[Step, ...] = ()
-                for k in members:
-                    planner = self.envs[k].planner
-                    assert planner is not None
-                    steps = planner.act(taken)  # the same steps for every member
+            for key in order:
+                members = parts[key]
+                taken, steps = taken_steps[key]
+                target = group if key == largest else self._split(group, members)
                 for step in steps:
                     target.batch.step(step)
                 target.history.extend(steps)

@@ -53,6 +53,7 @@ def test_compares_policies_and_writes_the_tradeoff(tmp_path, capsys):
         (["--policy", "clever"], "invalid choice: 'clever'"),
         (["--episodes", "0"], "must be at least 1"),
         (["--budget", "-3"], "expected a finite number above 0"),
+        (["--planner", "grid"], "invalid choice: 'grid'"),
     ],
 )
 def test_bad_arguments_are_refused(argv, message, tmp_path, capsys):
@@ -66,3 +67,12 @@ def test_bad_arguments_are_refused(argv, message, tmp_path, capsys):
 def test_a_missing_scenario_is_refused(tmp_path):
     assert main(["strategies", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_the_stands_planner_plays_the_same_policies(tmp_path, capsys):
+    out = tmp_path / "stands"
+    argv = ["strategies", str(SMOKE), "--policy", "paper", "--episodes", "2"]
+    assert main([*argv, "--planner", "stands", "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    assert [r["policy"] for r in rows] == ["paper"] * 2
+    assert all(float(r["error_cam1_mm"]) > 0 for r in rows)

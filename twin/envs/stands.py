@@ -1,0 +1,549 @@
+"""The campaign an environment's agent plays, read from a table of the site: the ``stands``
+planner, fast enough for random moves.
+
+The campaign planner (:mod:`twin.envs.planner`) runs the campaign itself for every new
+sequence of moves, which costs about a tenth of a second a decision: fine for policies
+that repeat their moves, far too slow for exploration. This planner plays the same moves
+on a site's table, computed once per site and process (:class:`StandSite`):
+
+- the **stands**: where the parent can stop on a travel. Between two stations' places on
+  the route, the route is cut into equal cells of at most the layout's shortest step
+  (``min(step_factors)`` times ``campaign.formation.step``); a leg of step factor ``f``
+  advances ``f / min(step_factors)`` cells (rounded), its last leg ends at the station.
+  Each calibration station and the start is a stand of its own, where the station is;
+- the **legs**: for a pair of stands, a direction, a formation and the sight margins, the
+  children's stops, found as the campaign finds them (:func:`twin.campaign.plan.
+  formation.formation`), with every robot's truth there from the site's world (floor tilt
+  included); found the first time a leg is asked for, then read back;
+- the **stations' data**: the plan's steps of each station's data set and calibration,
+  recorded once from the campaign itself, run noise-free with the paper's strategy
+  (:class:`twin.batch.plan.PlanSession`). Its start (the reference data) is the episode's
+  start.
+
+What the table leaves out, which the campaign planner keeps (the price of its speed):
+
+- the waiting child is not checked for hiding the far child's prisms (a formation may be
+  allowed that the campaign would refuse; the batch does not simulate lost locks);
+- the sight margins come from the trial's own parent covariance, rounded up to
+  :data:`STD_STEP` (the campaign plans from its noise-free covariance);
+- the children keep their order along the route (the one ahead moves first), by the
+  direction of travel;
+- a station's data stops and calibration are those the paper's campaign took there,
+  whatever formation the group arrived in (its anchor child stood where the paper's
+  left it); a station the paper's run could not calibrate at cannot be calibrated at;
+- time: each robot's straight travel at its top speed, as the geometric clock counts it,
+  plus the shots' time of a leg measured on the site's paper run; a station's data take
+  the time they took in that run.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from twin.batch.plan import (
+    BatchPlan,
+    Calibrate,
+    DataSetDone,
+    Drive,
+    Fix,
+    Place,
+    PlanSession,
+    Point,
+    RobotTruth,
+    Step,
+)
+from twin.campaign.paper_strategy import ARRIVED
+from twin.campaign.plan.formation import formation, sight_margins
+from twin.campaign.plan.route import RoutePath
+from twin.campaign.strategy import DataStops, Leg, NextLeg, NextVisit, Visit
+from twin.envs.moves import MoveLayout, formation_settings
+from twin.envs.planner import LEG, START, VISIT, Station, site_stations
+from twin.scenario.schema import Scenario
+
+__all__ = ["STD_STEP", "StandPlanner", "StandSite", "clear_sites", "site_for"]
+
+STD_STEP = 0.025
+"""The parent's horizontal standard deviation is rounded up to a multiple of this, m,
+before it sets a formation's sight margins (so that legs are found once and read back)."""
+
+SITES = 8
+"""Sites whose tables a process keeps (the least recently used is dropped)."""
+
+
+@dataclass(frozen=True)
+class Stand:
+    """Where the parent can stop.
+
+    Attributes:
+        index: its place in the site's list. xy: (2,) the instrument's ground point, m (W).
+        arc: its arc length on the route, m. station: the station there (its own stand),
+            or None on the route.
+    """
+
+    index: int
+    xy: NDArray[np.float64]
+    arc: float
+    station: str | None = None
+
+
+@dataclass(frozen=True)
+class _Leg:
+    """A leg found: its steps and each robot's stop (for the clock)."""
+
+    steps: tuple[Step, ...]
+    stops: dict[str, NDArray[np.float64]]
+
+
+@dataclass(frozen=True)
+class _Data:
+    """A station's data set and calibration as the paper's run took them.
+
+    Attributes:
+        steps: the plan's steps (numbered as the paper's visit). time: how long they
+            took, s.
+        stops: where each robot that moved stood at the end (2,), m.
+    """
+
+    steps: tuple[Step, ...]
+    time: float
+    stops: dict[str, NDArray[np.float64]]
+
+
+def _renumbered(step: Step, visit: int) -> Step:
+    """A data step with the visit number ``visit``."""
+    if isinstance(step, (Point, DataSetDone, Calibrate)):
+        return replace(step, visit=visit)
+    return step
+
+
+class StandSite:
+    """A site's table: its stands, its stations' data and the legs found so far (see the
+    module).
+
+    Args:
+        scenario: the site and its campaign settings.
+        layout: the moves.
+
+    Attributes:
+        plan: the campaign's plan before its first decision. start: the plan's steps of
+            the start (the reference data). start_time: how long the start took, s.
+        stations, order: as :class:`twin.envs.planner.CampaignPlanner`'s.
+        stands: every stand. at: each station's stand, by the station's name.
+        data: each station's data, by name (a station the paper's run did not calibrate at
+            has none).
+        leg_overhead: the shots' time of a leg, s.
+    """
+
+    def __init__(self, scenario: Scenario, layout: MoveLayout) -> None:
+        self.scenario, self.layout = scenario, layout
+        self.path = RoutePath(scenario.route.waypoints)
+        self.stations = site_stations(scenario, self.path)
+        self.order = tuple(name for name in self.stations if name != START)
+        if len(self.order) > layout.max_stations:
+            raise ValueError(
+                f"{scenario.name}: {len(self.order)} stations, more than max_stations = "
+                f"{layout.max_stations}"
+            )
+        base = scenario.campaign.formation
+        shortest = min(layout.step_factors)
+        self.cell = shortest * base.step
+        self.cells = {f: max(1, round(f / shortest)) for f in layout.step_factors}
+        self.forms = {name: formation_settings(name, base) for name in layout.formations}
+        self.marker = scenario.marker.assembly()
+        spec = scenario.noise.total_station.spec()
+        self.instrument_range = (spec.range_min, spec.range_max)
+        self.legs: dict[tuple[object, ...], _Leg | None] = {}
+        self._truths: dict[tuple[str, tuple[float, ...]], RobotTruth] = {}
+        self._data_steps: dict[tuple[str, int], tuple[Step, ...]] = {}
+        self._session = PlanSession(scenario, "paper")
+        try:
+            self._record(self._session)
+        except BaseException:
+            self._session.close()
+            raise
+        self._build_stands()
+
+    # -- the site's paper run ---------------------------------------------------------------
+    def _record(self, session: PlanSession) -> None:
+        """Run the paper's campaign: its start, each station's data, the legs' overhead."""
+        start: list[Step] = []
+        while not session.done and not isinstance(session.question, NextVisit):
+            start.extend(session.answer(session.suggested()))
+        self.plan: BatchPlan = session.plan
+        self.start = tuple(start)
+        self.start_time = session.time
+        robots = (self.plan.parent, *self.plan.children)
+        self.speed = {name: session.max_speed(name) for name in robots}
+        where = {name: self.plan.start[name].pose[:2].copy() for name in robots}
+        self.start_xy = {name: xy.copy() for name, xy in where.items()}
+        self.data: dict[str, _Data] = {}
+        overheads: list[float] = []
+        goal: object = None
+        while not session.done:
+            question, answer = session.question, session.suggested()
+            before, moved = session.time, where.copy()
+            steps = session.answer(answer)
+            driving = self._drive_time(steps, where)
+            if isinstance(question, NextVisit):
+                goal = answer
+            elif isinstance(question, NextLeg) and isinstance(answer, Leg):
+                overheads.append(session.time - before - driving)
+            elif isinstance(question, DataStops) and isinstance(goal, Visit):
+                name = self._station_of(goal)
+                if name is not None and name not in self.data and _calibrates(steps):
+                    stops = {r: xy for r, xy in where.items() if not np.array_equal(xy, moved[r])}
+                    self.data[name] = _Data(steps, session.time - before, stops)
+        self.leg_overhead = float(np.mean(overheads)) if overheads else 0.0
+
+    def _drive_time(self, steps: tuple[Step, ...], where: dict[str, NDArray[np.float64]]) -> float:
+        """The drives' time by the geometric clock (straight travel at top speed), s;
+        ``where`` follows the robots."""
+        time = 0.0
+        for step in steps:
+            if isinstance(step, Drive):
+                xy = step.believed[:2]
+                time += float(np.linalg.norm(xy - where[step.robot])) / self.speed[step.robot]
+                where[step.robot] = xy.copy()
+        return time
+
+    def _station_of(self, visit: Visit) -> str | None:
+        for name, st in self.stations.items():
+            if (
+                st.camera == visit.camera
+                and np.allclose(st.xy, visit.station)
+                and math.isclose(st.yaw, visit.yaw)
+            ):
+                return name
+        return None
+
+    # -- stands -----------------------------------------------------------------------------
+    def _build_stands(self) -> None:
+        keys = sorted({round(st.arc, 9) for st in self.stations.values()})
+        arcs: list[float] = []
+        for a, b in itertools.pairwise(keys):
+            n = max(1, math.ceil((b - a) / self.cell - 1e-9))
+            arcs.extend(a + (b - a) * m / n for m in range(n))
+        arcs.append(keys[-1])
+        stands = [Stand(i, self.path.at(s), s) for i, s in enumerate(arcs)]
+        self.at: dict[str, Stand] = {}
+        for name, st in self.stations.items():
+            stand = Stand(len(stands), st.xy.copy(), st.arc, name)
+            stands.append(stand)
+            self.at[name] = stand
+        self.stands = stands
+        self._route = np.array([s.arc for s in stands if s.station is None])
+
+    def travel(self, here: Stand, goal: str) -> tuple[list[Stand], float]:
+        """The stands of a travel from ``here`` to station ``goal``'s (the route's stands
+        strictly between, then the station's), and its direction (+1 or -1 along the
+        route)."""
+        end = self.at[goal]
+        direction = 1.0 if end.arc >= here.arc else -1.0
+        lo, hi = sorted((here.arc, end.arc))
+        inside = [s for s in self.stands if s.station is None and lo + 1e-6 < s.arc < hi - 1e-6]
+        inside.sort(key=lambda s: direction * s.arc)
+        return [*inside, end], direction
+
+    def children_order(self, direction: float) -> list[str]:
+        """The two children, the one ahead along the route (at the start) first."""
+        s = {c: self.path.project(self.start_xy[c]) for c in self.plan.children[:2]}
+        return sorted(s, key=lambda c: direction * s[c], reverse=True)
+
+    # -- legs and data ----------------------------------------------------------------------
+    def truth(self, robot: str, pose: NDArray[np.float64]) -> RobotTruth:
+        """Where ``robot`` truly stands at ``pose`` (read back after the first time)."""
+        key = (robot, tuple(np.round(pose, 9).tolist()))
+        found = self._truths.get(key)
+        if found is None:
+            found = self._truths[key] = self._session.truth_at(robot, pose)
+        return found
+
+    def leg(
+        self,
+        here: Stand,
+        to: Stand,
+        direction: float,
+        name: str,
+        margins: tuple[float, ...],
+        heading: float,
+    ) -> _Leg | None:
+        """The leg from ``here`` to ``to`` with the children in formation ``name``, the
+        parent arriving with ``heading`` (rad); None where they have no room."""
+        key = (here.index, to.index, direction, name, margins, heading)
+        if key in self.legs:
+            return self.legs[key]
+        parent = self.plan.parent
+        instrument = self.plan.start[parent].instrument
+        assert instrument is not None
+        found = formation(
+            self.scenario.space,
+            self.marker.cubes_body,
+            self.instrument_range,
+            self.path,
+            to.arc,
+            here.xy,
+            to.xy,
+            direction,
+            self.forms[name],
+            float(instrument[2]),
+            None,
+            margins,
+        )
+        leg = None
+        if found is not None:
+            order = self.children_order(direction)
+            steps: list[Step] = []
+            stops: dict[str, NDArray[np.float64]] = {}
+            for child, stop in zip(order, found[1], strict=True):
+                pose = np.array([*stop.xy, stop.yaw])
+                steps += [Drive(child, pose, self.truth(child, pose)), Place(child)]
+                stops[child] = pose[:2]
+            pose = np.array([*to.xy, heading])
+            steps += [Drive(parent, pose, self.truth(parent, pose))]
+            steps += [Fix(tuple(c for c in self.plan.children if c in stops))]
+            stops[parent] = pose[:2]
+            leg = _Leg(tuple(steps), stops)
+        self.legs[key] = leg
+        return leg
+
+    def data_steps(self, station: str, visit: int) -> tuple[Step, ...]:
+        """The steps of the data set and calibration at ``station``, as visit ``visit`` of
+        its camera."""
+        key = (station, visit)
+        steps = self._data_steps.get(key)
+        if steps is None:
+            steps = tuple(_renumbered(s, visit) for s in self.data[station].steps)
+            self._data_steps[key] = steps
+        return steps
+
+    def close(self) -> None:
+        """Free the site's world."""
+        self._session.close()
+
+
+def _calibrates(steps: tuple[Step, ...]) -> bool:
+    return any(isinstance(s, Calibrate) for s in steps)
+
+
+_SITES: OrderedDict[tuple[str, MoveLayout], StandSite] = OrderedDict()
+
+
+def site_for(scenario: Scenario, layout: MoveLayout) -> StandSite:
+    """The process's table of a site (made on first use: a run of the paper's campaign)."""
+    key = (scenario.model_dump_json(), layout)
+    site = _SITES.get(key)
+    if site is None:
+        site = _SITES[key] = StandSite(scenario, layout)
+        while len(_SITES) > SITES:
+            _SITES.popitem(last=False)[1].close()
+    _SITES.move_to_end(key)
+    return site
+
+
+def clear_sites() -> None:
+    """Forget every site's table."""
+    while _SITES:
+        _SITES.popitem()[1].close()
+
+
+def rounded_std(parent_covariance: NDArray[np.float64]) -> float:
+    """The parent's horizontal standard deviation along its most uncertain axis from its
+    (4, 4) covariance (yaw, x, y, z), rounded up to :data:`STD_STEP`, m (0 where it is not
+    finite: a trial lost)."""
+    block = np.asarray(parent_covariance, dtype=float)[1:3, 1:3]
+    if not np.isfinite(block).all():
+        return 0.0
+    std = math.sqrt(max(float(np.linalg.eigvalsh(block).max()), 0.0))
+    return STD_STEP * math.ceil(std / STD_STEP - 1e-9)
+
+
+@dataclass
+class StandPlanner:
+    """An episode's campaign on a site's table, advanced by an agent's moves: the same
+    interface as :class:`twin.envs.planner.CampaignPlanner` (see the module).
+
+    Args:
+        scenario: the site. layout: the moves. budget_m: the parent's travel allowed, m.
+
+    Attributes:
+        parent_std: gives the trial's parent covariance's rounded standard deviation
+            (:func:`rounded_std`) when a leg's moves are weighed; the environment sets it.
+    """
+
+    scenario: Scenario
+    layout: MoveLayout
+    budget_m: float
+    parent_std: Callable[[], float] = field(default=lambda: 0.0)
+
+    def __post_init__(self) -> None:
+        self.site = site_for(self.scenario, self.layout)
+        self.stations: dict[str, Station] = self.site.stations
+        self.order = self.site.order
+        self._stand = self.site.at[START]
+        self._pending = self.site.start
+        self.decision: str | None = VISIT
+        self.time = self.site.start_time
+        self.travelled = 0.0
+        self.visits: dict[str, int] = {}
+        self._goal: str | None = None
+        self._travel: list[Stand] = []
+        self._direction = 1.0
+        self._where = {name: xy.copy() for name, xy in self.site.start_xy.items()}
+        self._mask: NDArray[np.bool_] | None = None
+        self._legs: list[_Leg | None] = []
+        self.computed = 0
+
+    # -- where the campaign stands ----------------------------------------------------------
+    @property
+    def memo(self) -> StandSite:
+        """The site's table (planners of one site in one process share it)."""
+        return self.site
+
+    @property
+    def plan(self) -> BatchPlan:
+        """The campaign's plan before its first step."""
+        return self.site.plan
+
+    @property
+    def done(self) -> bool:
+        """Whether the campaign is over."""
+        return self.decision is None
+
+    @property
+    def mask(self) -> NDArray[np.bool_]:
+        """(n,) the moves allowed now (read-only)."""
+        if self._mask is None:
+            self._mask = self._allowed()
+            self._mask.flags.writeable = False
+        return self._mask
+
+    def here(self) -> str | None:
+        """The station the parent stands at (the nearest within reach), or None."""
+        xy = self._stand.xy
+        near = {n: float(np.linalg.norm(st.xy - xy)) for n, st in self.stations.items()}
+        name = min(near, key=near.__getitem__)
+        return name if near[name] < ARRIVED else None
+
+    def here_camera(self) -> str | None:
+        """The camera whose station the parent stands at, or None."""
+        here = self.here()
+        return None if here is None else self.stations[here].camera
+
+    @property
+    def goal_station(self) -> Station | None:
+        """The station the group travels to, during a travel."""
+        return None if self._goal is None else self.stations[self._goal]
+
+    def route_distance(self, station: Station) -> float:
+        """The parent's travel along the route to a station, m."""
+        path, stand = self.site.path, self._stand
+        return (
+            abs(station.arc - stand.arc)
+            + float(np.linalg.norm(path.at(stand.arc) - stand.xy))
+            + float(np.linalg.norm(path.at(station.arc) - station.xy))
+        )
+
+    # -- moves ------------------------------------------------------------------------------
+    def take_pending(self) -> tuple[Step, ...]:
+        """The plan's steps before the first decision (the reference data), once."""
+        steps, self._pending = self._pending, ()
+        return steps
+
+    def act(self, action: int) -> tuple[Step, ...]:
+        """Take an allowed move; the plan's steps until the next decision.
+
+        Raises:
+            ValueError: the move is not allowed now (see :attr:`mask`).
+            RuntimeError: the campaign is over.
+        """
+        if self.done:
+            raise RuntimeError("the campaign is over: no move to take")
+        if not (0 <= action < self.layout.size and self.mask[action]):
+            raise ValueError(f"{self.layout.describe(action)} is not allowed now")
+        layout = self.layout
+        steps: tuple[Step, ...] = ()
+        if action == layout.end:
+            self.decision = None
+        elif self.decision == LEG:
+            leg = self._legs[action]
+            assert leg is not None
+            steps = leg.steps
+            to = self._travel[min(self._cells(action), len(self._travel)) - 1]
+            self.travelled += float(np.linalg.norm(to.xy - self._stand.xy))
+            self.time += self._moved(leg.stops) + self.site.leg_overhead
+            self._travel = self._travel[self._travel.index(to) + 1 :]
+            self._stand = to
+            if not self._travel:
+                self.decision, self._goal = VISIT, None
+        elif action == layout.calibrate:
+            here = self.here()
+            assert here is not None
+            camera = self.stations[here].camera
+            assert camera is not None
+            self.visits[camera] = self.visits.get(camera, 0) + 1
+            steps = self.site.data_steps(here, self.visits[camera])
+            data = self.site.data[here]
+            self.time += data.time
+            self._where.update({r: xy.copy() for r, xy in data.stops.items()})
+        else:
+            name = START if action == layout.return_start else self.order[action - layout.go_to(0)]
+            self._travel, self._direction = self.site.travel(self._stand, name)
+            self._goal, self.decision = name, LEG
+            if float(np.linalg.norm(self.site.at[name].xy - self._stand.xy)) < ARRIVED:
+                self._stand, self._travel = self.site.at[name], []  # there already
+                self.decision, self._goal = VISIT, None
+        self._mask = None
+        self.computed += 1
+        return steps
+
+    def _cells(self, action: int) -> int:
+        return self.site.cells[self.layout.leg_of(action)[1]]
+
+    def _moved(self, stops: dict[str, NDArray[np.float64]]) -> float:
+        """The robots drove to ``stops``: their drives' time, s."""
+        time = 0.0
+        for robot, xy in stops.items():
+            time += float(np.linalg.norm(xy - self._where[robot])) / self.site.speed[robot]
+            self._where[robot] = xy
+        return time
+
+    def _allowed(self) -> NDArray[np.bool_]:
+        layout = self.layout
+        mask = np.zeros(layout.size, dtype=bool)
+        if self.decision == LEG:
+            assert self._goal is not None
+            margins = sight_margins(self.parent_std())
+            goal = self.stations[self._goal]
+            self._legs = []
+            for name in layout.formations:
+                for factor in layout.step_factors:
+                    to = self._travel[min(self.site.cells[factor], len(self._travel)) - 1]
+                    back = 0.0 if self._direction > 0 else math.pi
+                    heading = goal.yaw if to.station else self.site.path.heading(to.arc) + back
+                    self._legs.append(
+                        self.site.leg(self._stand, to, self._direction, name, margins, heading)
+                    )
+            mask[: layout.legs] = [leg is not None for leg in self._legs]
+            if not mask.any():
+                mask[layout.end] = True  # no room for any formation: the campaign ends
+        elif self.decision == VISIT:
+            here = self.here()
+            mask[layout.calibrate] = here is not None and here in self.site.data
+            left = self.budget_m - self.travelled
+            for k, name in enumerate(self.order):
+                if name != here:
+                    mask[layout.go_to(k)] = self.route_distance(self.stations[name]) <= left
+            if here != START:
+                mask[layout.return_start] = self.route_distance(self.stations[START]) <= left
+            mask[layout.end] = True
+        return mask
+
+    def close(self) -> None:
+        """Nothing to free: the site's table is the process's."""
