@@ -2,22 +2,25 @@
 
 Run: ``.venv/bin/python benchmarks/bench_env.py [--seconds S] [--planner NAME...]``
 
-For vector sizes 1, 8 and 64 in one process, as the environment's own vector (``batched``:
-``gymnasium.make_vec``'s default, episodes that share their moves share their batch) and as
-Gymnasium's ``SyncVectorEnv``, and for 2 asynchronous workers (``AsyncVectorEnv``), each for
-S seconds of wall time (default 30):
+For vector sizes 1, 8, 64 (and 256 with the site's table) in one process, as the
+environment's own vector (``batched``: ``gymnasium.make_vec``'s default, the episodes of a
+site are the rows of one batch) and as Gymnasium's ``SyncVectorEnv``, and for 2
+asynchronous workers (``AsyncVectorEnv``):
 
-- ``random``: random masked moves (the issue's measure). Random play reaches new decisions
-  all the time, so the campaign runs every one of them;
-- ``paper``: the paper's policy, whose moves repeat from episode to episode: after the
-  first episode its campaign is read from the site's memo and only the noise runs.
+- ``random``: random masked moves (the issue's measure);
+- ``paper``: the paper's policy, whose moves repeat from episode to episode.
 
 Each for the environment's planners (``--planner``, default both): ``campaign`` (the
-campaign itself) and ``stands`` (a table of the site, :mod:`twin.envs.stands`).
+campaign itself: random play reaches new decisions all the time, and the campaign runs
+every one of them) and ``stands`` (a table of the site, :mod:`twin.envs.stands`, which
+finds each leg the first time it is asked for and reads it back after).
 
-The ratio is against one environment with the same policy and planner, measured in the
-same run; the absolute figure (steps/s per core, the target being 1000 with random moves) is
-printed with the machine's load average. Resets are counted in the time, not as steps.
+Each configuration plays two windows of S seconds of wall time (default 15) from fresh
+environments and a fresh table: ``cold`` (the first: the table fills) and ``warm`` (the
+second). The ratio is the warm rate against one environment with the same policy and
+planner, measured in the same run; the absolute figures (steps/s on one core, the target
+being 1000 with random moves) are printed with the machine's load average. Resets are
+counted in the time, not as steps.
 
 Then ``agreement`` (``--episodes N``, default 300): for each planner, N episodes of the
 paper's policy played step by step in the environment against ``twin montecarlo --fidelity
@@ -43,6 +46,7 @@ from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.comparison import play_episode
 from twin.envs.planner import clear_memos
 from twin.envs.policies import policy_named
+from twin.envs.stands import clear_sites
 from twin.montecarlo import run_montecarlo
 from twin.scenario import load_scenario
 
@@ -65,10 +69,11 @@ def load() -> str:
 
 def measure(
     mode: str, n: int, policy: str, seconds: float, planner: str = "campaign"
-) -> tuple[float, int]:
-    """(steps/s, steps) of ``n`` environments of ``mode`` playing ``policy`` for
-    ``seconds`` (the site's table, for ``stands``, is made before the clock starts)."""
+) -> tuple[float, float, int]:
+    """(cold steps/s, warm steps/s, steps) of ``n`` fresh environments of ``mode`` playing
+    ``policy`` for two windows of ``seconds`` each (see the module)."""
     clear_memos()
+    clear_sites()
     if mode == "batched":
         envs = gymnasium.make_vec(ENV_ID, num_envs=n, scenario=str(HALL), planner=planner).unwrapped
     else:
@@ -82,26 +87,30 @@ def measure(
             singles = [e.unwrapped for e in envs.envs]  # type: ignore[attr-defined]
             actors = [policy_named("paper")(e, k) for k, e in enumerate(singles)]
         restarting = np.zeros(n, dtype=bool)
-        steps = 0
-        start = time.perf_counter()
-        while time.perf_counter() - start < seconds:
-            actions = np.zeros(n, dtype=np.int64)
-            for k in range(n):
-                mask = info["action_mask"][k]
-                if restarting[k] or not mask.any():
-                    continue  # this step resets it
-                if actors is None:
-                    actions[k] = rng.choice(np.flatnonzero(mask))
-                else:
-                    one = {"decision": info["decision"][k], "action_mask": mask}
-                    actions[k] = actors[k]({}, one)
-            _obs, _, terminated, truncated, info = envs.step(actions)
-            steps += int((~restarting).sum())
-            if actors is not None:
-                for k in np.flatnonzero(restarting):
-                    actors[k] = policy_named("paper")(singles[k], k)
-            restarting = terminated | truncated
-        return steps / (time.perf_counter() - start), steps
+        rates, total = [], 0
+        for _window in range(2):
+            steps = 0
+            start = time.perf_counter()
+            while time.perf_counter() - start < seconds:
+                actions = np.zeros(n, dtype=np.int64)
+                for k in range(n):
+                    mask = info["action_mask"][k]
+                    if restarting[k] or not mask.any():
+                        continue  # this step resets it
+                    if actors is None:
+                        actions[k] = rng.choice(np.flatnonzero(mask))
+                    else:
+                        one = {"decision": info["decision"][k], "action_mask": mask}
+                        actions[k] = actors[k]({}, one)
+                _obs, _, terminated, truncated, info = envs.step(actions)
+                steps += int((~restarting).sum())
+                if actors is not None:
+                    for k in np.flatnonzero(restarting):
+                        actors[k] = policy_named("paper")(singles[k], k)
+                restarting = terminated | truncated
+            rates.append(steps / (time.perf_counter() - start))
+            total += steps
+        return rates[0], rates[1], total
     finally:
         envs.close()
 
@@ -147,35 +156,37 @@ def agreement(episodes: int, console: Console, planner: str = "campaign") -> Non
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--seconds", type=float, default=15.0)
     parser.add_argument("--episodes", type=int, default=300)
     parser.add_argument("--planner", nargs="+", default=["campaign", "stands"])
     args = parser.parse_args()
     console = Console(width=120)
     table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
-    columns = ("planner", "vector", "envs", "policy", "steps", "steps/s", "x one env", "load")
-    for name in columns:
+    columns = ("planner", "vector", "envs", "policy", "steps", "cold /s", "warm /s", "x one env")
+    for name in (*columns, "load"):
         table.add_column(name, justify="right")
     base: dict[tuple[str, str], float] = {}  # one environment of the environment's own vector
     for planner in args.planner:
-        if planner == "stands":
-            _make_stands().reset(seed=0)  # the site's table: once per process
         for policy in ("paper", "random"):
             for mode, n in (
                 ("batched", 1),
                 ("batched", 8),
                 ("batched", 64),
+                ("batched", 256),
                 ("sync", 8),
                 ("sync", 64),
                 ("async", 2),
             ):
                 if policy == "paper" and mode == "async":
                     continue  # the policy reads the environment: it runs in the same process
-                rate, steps = measure(mode, n, policy, args.seconds, planner)
-                base.setdefault((planner, policy), rate)
-                table.add_row(planner, mode, str(n), policy, str(steps), f"{rate:.1f}",
-                              f"{rate / base[(planner, policy)]:.2f}", load())  # fmt: skip
-                console.print(f"{planner} {mode} {n} {policy}: {rate:.1f} steps/s")
+                if n == 256 and planner != "stands":
+                    continue  # a step a second or so: the campaign runs every decision
+                cold, warm, steps = measure(mode, n, policy, args.seconds, planner)
+                base.setdefault((planner, policy), warm)
+                ratio = warm / base[(planner, policy)]
+                table.add_row(planner, mode, str(n), policy, str(steps), f"{cold:.1f}",
+                              f"{warm:.1f}", f"{ratio:.2f}", load())  # fmt: skip
+                console.print(f"{planner} {mode} {n} {policy}: {cold:.1f} / {warm:.1f} steps/s")
     console.print(table)
     console.print("target: 1000 steps/s with random moves on one core")
     if args.episodes > 0:  # --episodes 0: the speed table only

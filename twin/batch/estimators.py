@@ -19,6 +19,7 @@ the reference the vectorised estimators are held to.
 from __future__ import annotations
 
 import abc
+import copy
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
@@ -104,6 +105,19 @@ class CpsStates(abc.ABC):
     @abc.abstractmethod
     def child_position(self, child: str) -> NDArray[np.float64]:
         """(T, 3) a child's reference point in W, m."""
+
+    @abc.abstractmethod
+    def on_rows(self, rows: NDArray[np.intp]) -> CpsStates:
+        """The states of the trials ``rows`` (R,): its steps change these states only once
+        :meth:`put_rows` writes them back."""
+
+    @abc.abstractmethod
+    def put_rows(self, rows: NDArray[np.intp], part: CpsStates) -> None:
+        """Take the trials ``rows`` from ``part`` (:meth:`on_rows` of the same rows)."""
+
+    @abc.abstractmethod
+    def reset_rows(self, rows: NDArray[np.intp]) -> None:
+        """Start the trials ``rows`` again: the parent at W's origin, no child placed."""
 
 
 @dataclass(frozen=True)
@@ -272,7 +286,7 @@ class _ScalarCps(CpsStates):
         rate: float | None,
         creep: float = 0.0,
     ):
-        self.rate = rate
+        self.rate, self.creep = rate, creep
         # The consistency test is made here, not by the sequence: a trial that fails it
         # keeps its solution (the campaign would measure again; the batch counts it).
         self.sequences = [
@@ -304,6 +318,24 @@ class _ScalarCps(CpsStates):
 
     def child_position(self, child: str) -> NDArray[np.float64]:
         return np.array([s.child_position(child)[0] for s in self.sequences])
+
+    def on_rows(self, rows: NDArray[np.intp]) -> CpsStates:
+        part = copy.copy(self)
+        part.sequences = [self.sequences[k] for k in rows]  # stepped in place
+        return part
+
+    def put_rows(self, rows: NDArray[np.intp], part: CpsStates) -> None:
+        pass  # the sequences of ``part`` are this batch's own
+
+    def reset_rows(self, rows: NDArray[np.intp]) -> None:
+        first = self.sequences[0]
+        for k in rows:
+            self.sequences[k] = CpsSequence(
+                list(first.children),
+                solver=first.solver,
+                false_alarm_rate=None,
+                child_creep=self.creep,
+            )
 
 
 def _observation(child: str, o: Observations, k: int) -> ChildObservation:

@@ -42,10 +42,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from calib.covariance import own_position_variance
 from calib.rotation import rot_z
@@ -92,7 +93,8 @@ class Draws:
 
     Each trial's draws come from its own generator, in blocks; a generator gives the same
     sequence whatever the blocks, so a trial's noise depends on its seed alone, not on the
-    batch, the chunk or how far ahead the draws were reserved.
+    batch, the chunk, how far ahead the draws were reserved, or which other trials drew
+    at the same time (each trial keeps its own place in its sequence).
 
     Args:
         seeds: (T,) the trials' root seeds.
@@ -103,27 +105,55 @@ class Draws:
     """
 
     def __init__(self, seeds: Sequence[int], count: int, stream: int = BATCH_STREAM) -> None:
-        self._generators = [
-            np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(stream,)))
-            for seed in seeds
-        ]
+        self.stream = stream
+        self._generators = [self._generator(seed) for seed in seeds]
         self.values = np.zeros((len(seeds), 0))
-        self.used = 0
+        self.used = np.zeros(len(seeds), dtype=np.intp)  # each trial's place in values
         self._reserve(count)
 
-    def _reserve(self, count: int) -> None:
-        more = np.stack([g.standard_normal(count) for g in self._generators])
-        self.values = np.concatenate([self.values[:, self.used :], more], axis=1)
-        self.used = 0
+    def _generator(self, seed: int) -> np.random.Generator:
+        return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(self.stream,)))
 
-    def take(self, *shape: int) -> NDArray[np.float64]:
-        """(T, *shape) the next draws of every trial."""
+    def _reserve(self, count: int) -> None:
+        """Drop the draws taken and draw more: every trial then has ``count`` or more
+        ahead (each trial's own sequence goes on where it stopped)."""
+        left = self.values.shape[1] - self.used
+        width = int(left.max(initial=0)) + count
+        self.values = np.stack(
+            [
+                np.concatenate([row[start:], g.standard_normal(width - ahead)])
+                for row, start, ahead, g in zip(
+                    self.values, self.used, left, self._generators, strict=True
+                )
+            ]
+        ).reshape(len(self._generators), width)
+        self.used = np.zeros(len(self._generators), dtype=np.intp)
+
+    def take(self, *shape: int, rows: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+        """(T, *shape) the next draws of every trial, or (R, *shape) of the trials
+        ``rows``."""
         n = math.prod(shape)
-        if self.used + n > self.values.shape[1]:
+        used = self.used if rows is None else self.used[rows]
+        if len(used) and int(used.max()) + n > self.values.shape[1]:
             self._reserve(max(n, 4096))
-        out = self.values[:, self.used : self.used + n].reshape(len(self.values), *shape)
-        self.used += n
-        return out
+            used = self.used if rows is None else self.used[rows]
+        start = int(used[0]) if len(used) else 0
+        if rows is None and (used == start).all():
+            out = self.values[:, start : start + n]
+            self.used = self.used + n
+        else:
+            picked = np.arange(len(self.values)) if rows is None else rows
+            out = self.values[picked[:, None], used[:, None] + np.arange(n)]
+            self.used[picked] += n
+        return out.reshape(len(used), *shape)
+
+    def restart(self, rows: NDArray[np.intp], seeds: Sequence[int]) -> None:
+        """Trials ``rows`` start again from ``seeds`` (their first draws next)."""
+        width = self.values.shape[1]
+        for k, seed in zip(rows, seeds, strict=True):
+            self._generators[k] = self._generator(seed)
+            self.values[k] = self._generators[k].standard_normal(width)
+            self.used[k] = 0
 
 
 def draws_needed(plan: BatchPlan, n_leds: int) -> int:
@@ -164,23 +194,58 @@ def _inverse(a: NDArray[np.float64]) -> NDArray[np.float64]:
 @dataclass
 class _Robot:
     """A robot in T trials: where it truly stands and where it believes it stands (planar,
-    (T, 3)), and where it stood in the noise-free plan."""
+    (T, 3)), and each trial's stop in the noise-free plan (``nominal``: its pose, its
+    marker's cubes and LEDs (a child), its instrument's centre, orientation and tilt (the
+    parent), each (T, ...))."""
 
     true: NDArray[np.float64]
     believed: NDArray[np.float64]
-    nominal: RobotTruth
+    nominal: dict[str, NDArray[np.float64]]
+    _stops: dict[int, tuple[RobotTruth, dict[str, NDArray[np.float64]]]] = field(
+        default_factory=dict
+    )
 
-    def moved(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
-        """(..., 3) points of the nominal stop (W) moved with each trial's true pose:
-        (T, ..., 3). The robot's turn is about the vertical through its origin."""
-        delta = self.true[:, 2] - self.nominal.pose[2]
-        r = rot_z(delta)
-        rel = points - np.array([*self.nominal.pose[:2], 0.0])
-        flat = rel.reshape(-1, 3)
-        out = np.einsum("tij,kj->tki", r, flat).reshape(len(delta), *points.shape)
-        out[..., 0] += self.true[:, 0].reshape((-1,) + (1,) * (points.ndim - 1))
-        out[..., 1] += self.true[:, 1].reshape((-1,) + (1,) * (points.ndim - 1))
-        return out
+    @classmethod
+    def at(cls, truth: RobotTruth, trials: int) -> _Robot:
+        pose = np.repeat(truth.pose[None], trials, axis=0)
+        return cls(pose.copy(), pose.copy(), _nominal(truth, trials))
+
+    def stopped(self, truths: Sequence[RobotTruth], rows: NDArray[np.intp] | slice) -> None:
+        """The trials ``rows`` stopped at ``truths`` (one for all, or one a row)."""
+        stops = [self._stop(t) for t in truths]
+        for name, values in self.nominal.items():
+            values[rows] = stops[0][name] if len(stops) == 1 else [s[name][0] for s in stops]
+
+    def _stop(self, truth: RobotTruth) -> dict[str, NDArray[np.float64]]:
+        """A stop's arrays, (1, ...) each (made once per stop: a plan's stops repeat)."""
+        known = self._stops.get(id(truth))
+        if known is None or known[0] is not truth:
+            known = self._stops[id(truth)] = (truth, _nominal(truth, 1))
+        return known[1]
+
+    def moved(
+        self, points: NDArray[np.float64], rows: NDArray[np.intp] | slice
+    ) -> NDArray[np.float64]:
+        """(R, ..., 3) points of the trials' nominal stops (W) moved with their true poses.
+        The robot's turn is about the vertical through its origin."""
+        true, pose = self.true[rows], self.nominal["pose"][rows]
+        r = rot_z(true[:, 2] - pose[:, 2])
+        flat = points.reshape(len(true), -1, 3).copy()
+        flat[..., :2] -= pose[:, None, :2]
+        out = np.einsum("tij,tkj->tki", r, flat)
+        out[..., :2] += true[:, None, :2]
+        return out.reshape(points.shape)
+
+
+def _nominal(truth: RobotTruth, trials: int) -> dict[str, NDArray[np.float64]]:
+    """A robot's stop as arrays, each repeated for ``trials`` trials."""
+    out = {"pose": truth.pose}
+    if truth.cubes is not None and truth.leds is not None:
+        out["cubes"], out["leds"] = truth.cubes, truth.leds
+    if truth.instrument is not None and truth.instrument2world is not None:
+        out["instrument"], out["orientation"] = truth.instrument, truth.instrument2world
+        out["tilt"] = np.array(tilt_from_orientation(truth.instrument2world))
+    return {k: np.repeat(np.asarray(v, dtype=float)[None], trials, axis=0) for k, v in out.items()}
 
 
 @dataclass
@@ -236,18 +301,21 @@ class VisitOutcome:
 
 @dataclass
 class _DataSet:
-    """A data set's stops in T trials, in order: each stop's k <= N_led LED points."""
+    """A data set's stops in the trials that took it (``rows``; ``alive``: those that have
+    not started again since), in order: each stop's k <= N_led LED points."""
 
-    points: list[NDArray[np.float64]] = field(default_factory=list)  # (T, k, 3) each
-    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (T, k, 2) each
-    covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, 3N_led)
+    rows: NDArray[np.intp]
+    alive: NDArray[np.bool_]
+    points: list[NDArray[np.float64]] = field(default_factory=list)  # (R, k, 3) each
+    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (R, k, 2) each
+    covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (R, 3N_led, 3N_led)
     leds: list[NDArray[np.intp]] = field(default_factory=list)  # (k,) each: which LEDs
     children: list[str] = field(default_factory=list)  # each stop's child
-    surveys: list[NDArray[np.float64]] = field(default_factory=list)  # (T, 3N_led, M) each
+    surveys: list[NDArray[np.float64]] = field(default_factory=list)  # (R, 3N_led, M) each
     size: int | None = None
 
     def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(T, n, 3) points and (T, n, 2) pixels, the first n LED points in order."""
+        """(R, n, 3) points and (R, n, 2) pixels, the first n LED points in order."""
         if not self.points:
             return np.zeros((0, 0, 3)), np.zeros((0, 0, 2))
         pts = np.concatenate(self.points, axis=1)
@@ -256,12 +324,12 @@ class _DataSet:
         return pts[:, :n], pix[:, :n]
 
     def stops(self) -> NDArray[np.float64]:
-        """(T, S, 3N_led, 3N_led) the covariance of each stop's LEDs, all N_led of them
+        """(R, S, 3N_led, 3N_led) the covariance of each stop's LEDs, all N_led of them
         (the joint covariance of the data set is block-diagonal: one block a stop)."""
         return np.stack(self.covariances, axis=1)
 
     def shared(self) -> NDArray[np.float64] | None:
-        """(T, S 3N_led, C M) the stops' loadings on their children's surveying errors in
+        """(R, S 3N_led, C M) the stops' loadings on their children's surveying errors in
         the layout of :meth:`stops` (None where the assembly is known exactly)."""
         if not self.covariances:
             return None
@@ -276,8 +344,57 @@ class _DataSet:
         return np.concatenate([s * n_led + leds for s, leds in enumerate(self.leds)])
 
 
+Rows = NDArray[np.intp] | slice
+"""Which trials a step runs for: all of them (``slice(None)``) or an index array."""
+
+ALL: slice = slice(None)
+
+
+def _take(value: Any, rows: NDArray[np.intp]) -> Any:
+    """A dataclass of (T, ...) arrays (or an array) for the trials ``rows`` only."""
+    if isinstance(value, np.ndarray):
+        return value[rows]
+    return replace(value, **{f.name: getattr(value, f.name)[rows] for f in fields(value)})
+
+
+def _put(old: Any, rows: NDArray[np.intp], new: Any, trials: int) -> Any:
+    """``old`` (a dataclass of (T, ...) arrays, an array, or None: blank) with the trials
+    ``rows`` taken from ``new``; a new object, ``old`` is left as it was."""
+    if isinstance(new, np.ndarray):
+        out = _blank(new, trials) if old is None else np.array(old, copy=True)
+        out[rows] = new
+        return out
+    return replace(
+        new,
+        **{
+            f.name: _put(
+                None if old is None else getattr(old, f.name), rows, getattr(new, f.name), trials
+            )
+            for f in fields(new)
+        },
+    )
+
+
+def _blank_rows(value: Any, n: int) -> Any:
+    """A dataclass of arrays like ``value`` for ``n`` trials that have filled nothing."""
+    return replace(value, **{f.name: _blank(getattr(value, f.name), n) for f in fields(value)})
+
+
+def _blank(like: NDArray[Any], trials: int) -> NDArray[Any]:
+    """(T, ...) an array like ``like``'s rows that no trial has filled: NaN, 0 or False."""
+    fill: Any = np.nan if np.issubdtype(like.dtype, np.floating) else 0
+    return np.full((trials, *like.shape[1:]), fill, dtype=like.dtype)
+
+
 class BatchRun:
     """T trials of a plan, executed step by step (:meth:`step`, or :meth:`run` for all).
+
+    The trials may also go their own ways: :meth:`step` with ``rows`` runs a step for some
+    trials only, :meth:`drive_rows` drives a robot of each of them to its own stop, and
+    :meth:`restart` starts some trials again with new seeds; each trial then gives what
+    it would give alone with the steps it took (the environment's vector runs its
+    episodes so, each its own campaign, as the rows of one batch). The global adjustment's
+    records (``record_network``) need every trial to take every step.
 
     Args:
         plan: the campaign's plan.
@@ -293,7 +410,9 @@ class BatchRun:
             (:attr:`network`, :mod:`twin.batch.network`).
 
     Attributes:
-        executed: the steps executed so far.
+        executed: the steps executed so far (a restart counts one).
+        last_estimate: each trial's parent estimate at its last fix. last_truth: (T, 3)
+            the instrument's true centre there, m.
     """
 
     def __init__(
@@ -324,40 +443,46 @@ class BatchRun:
         self.led_px = dict(led_px)
         self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
-        n_leds = len(self.marker.leds_body)
+        self.n_leds = len(self.marker.leds_body)
         self.seeds = list(seeds)
-        self.draws = Draws(seeds, draws_needed(plan, n_leds))
+        self.draws = Draws(seeds, draws_needed(plan, self.n_leds))
         self._creep_draws: Draws | None = None
-        self._leg_started = False
         t = self.trials
-        self.robots = {
-            name: _Robot(
-                np.repeat(truth.pose[None], t, axis=0),
-                np.repeat(truth.pose[None], t, axis=0),
-                truth,
-            )
-            for name, truth in plan.start.items()
-        }
-        sigma = self.noise.marker_geometry_m
-        self.built = {
-            child: (
-                sigma * self.draws.take(3, 3),
-                sigma * self.draws.take(n_leds, 3),
-            )
-            for child in plan.children
-        }
+        self._leg_started = np.zeros(t, dtype=bool)
+        self.robots = {name: _Robot.at(truth, t) for name, truth in plan.start.items()}
+        self.built: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self._build(ALL)
         solver = "wls" if len(plan.children) > 1 else "closed_form"
         self.cps: CpsStates = estimators.cps(
             t, plan.children, solver, FALSE_ALARM_RATE, sc.campaign.child_creep_m
         )
         self.placed: dict[str, tuple[Observations, ParentEstimates]] = {}
-        self.datasets: dict[tuple[str, str, int], _DataSet] = {}
-        self.fixes: list[tuple[ParentEstimates, NDArray[np.float64]]] = []
+        self.datasets: dict[tuple[str, str, int], list[_DataSet]] = {}
+        self.tracks: list[list[NDArray[np.float64]]] = [[] for _ in range(t)]
         self.distance = np.zeros(t)
         self.failures = np.zeros(t, dtype=np.int64)
         self.visits: dict[tuple[str, int], VisitOutcome] = {}
         self.executed = 0
-        self._record_fix(self.robots[plan.parent].nominal.instrument)
+        self.last_estimate: ParentEstimates | None = None
+        self.last_truth = np.zeros((t, 3))
+        self._record_fix(self.cps.parent, self._start_centre(t), ALL)
+
+    def _build(self, rows: Rows) -> None:
+        """The trials' marker assemblies, each child's as built (its surveying error)."""
+        sigma = self.noise.marker_geometry_m
+        picked = None if isinstance(rows, slice) else rows
+        for child in self.plan.children:
+            cubes = sigma * self.draws.take(3, 3, rows=picked)
+            leds = sigma * self.draws.take(self.n_leds, 3, rows=picked)
+            if child not in self.built:
+                self.built[child] = (cubes, leds)
+            else:
+                self.built[child][0][rows], self.built[child][1][rows] = cubes, leds
+
+    def _start_centre(self, n: int) -> NDArray[np.float64]:
+        instrument = self.plan.start[self.plan.parent].instrument
+        assert instrument is not None
+        return np.repeat(instrument[None], n, axis=0)
 
     # -- the steps -------------------------------------------------------------------------
     def run(self) -> BatchOutcome:
@@ -366,170 +491,268 @@ class BatchRun:
             self.step(step)
         return self.outcome()
 
-    def step(self, step: object) -> None:
-        """Execute one step of the plan for every trial."""
+    def step(self, step: object, rows: ArrayLike | None = None) -> None:
+        """Execute one step of the plan for every trial, or for the trials ``rows``."""
+        r = self._rows(rows)
         self.executed += 1
         if isinstance(step, Drive):
-            self._drive(step)
+            self._drive([step], r)
         elif isinstance(step, Place):
-            self._place(step.child)
+            self._place(step.child, r)
         elif isinstance(step, Fix):
-            self._fix(step.children)
+            self._fix(step.children, r)
         elif isinstance(step, Point):
-            self._point(step)
+            self._point(step, r)
         elif isinstance(step, DataSetDone):
-            self._dataset(step).size = step.points
+            self._dataset(
+                (step.dataset, step.camera, step.visit), r, open_only=True
+            ).size = step.points
         elif isinstance(step, Calibrate):
-            self._calibrate(step)
+            self._calibrate(step, r)
         else:
             raise TypeError(f"unknown step {step!r}")
 
-    def _drive(self, step: Drive) -> None:
+    def drive_rows(self, steps: Sequence[Drive], rows: ArrayLike) -> None:
+        """Drive one robot in each of the trials ``rows`` (R,) to its own stop
+        (``steps[i]`` for ``rows[i]``)."""
+        r = self._rows(rows)
+        assert not isinstance(r, slice)
+        if len(steps) != len(r) or len({s.robot for s in steps}) != 1:
+            raise ValueError("drive_rows needs one drive of one robot per row")
+        self.executed += 1
+        self._drive(steps, r)
+
+    def _rows(self, rows: ArrayLike | None) -> Rows:
+        if rows is None:
+            return ALL
+        if self.network is not None:
+            raise ValueError("a batch that records the network runs every step for every trial")
+        r = np.asarray(rows, dtype=np.intp).reshape(-1)
+        if len(r) and (r.min() < 0 or r.max() >= self.trials or len(np.unique(r)) < len(r)):
+            raise ValueError(f"rows must be distinct trials of 0 .. {self.trials - 1}")
+        return r
+
+    def _picked(self, r: Rows) -> NDArray[np.intp] | None:
+        """The draws' rows: None for every trial."""
+        return None if isinstance(r, slice) else r
+
+    def _count(self, r: Rows) -> int:
+        return self.trials if isinstance(r, slice) else len(r)
+
+    def _drive(self, steps: Sequence[Drive], r: Rows) -> None:
+        step = steps[0]
         robot = self.robots[step.robot]
-        believed = np.repeat(step.believed[None], self.trials, axis=0)
-        offset = _compose(robot.true, _inverse(robot.believed))
+        if len(steps) == 1:
+            believed = np.repeat(step.believed[None], self._count(r), axis=0)
+        else:
+            believed = np.stack([s.believed for s in steps])
+        offset = _compose(robot.true[r], _inverse(robot.believed[r]))
         true = _compose(offset, believed)
         stop = self.noise.stopping
-        true[:, :2] += stop.sigma_xy * self.draws.take(2)
-        true[:, 2] += stop.sigma_yaw * self.draws.take(1)[:, 0]
-        robot.true, robot.believed, robot.nominal = true, believed, step.truth
+        true[:, :2] += stop.sigma_xy * self.draws.take(2, rows=self._picked(r))
+        true[:, 2] += stop.sigma_yaw * self.draws.take(1, rows=self._picked(r))[:, 0]
+        robot.true[r], robot.believed[r] = true, believed
+        robot.stopped([s.truth for s in steps], r)
         creep = self.noise.child_creep_m
-        if step.robot == self.plan.parent and creep > 0 and not self._leg_started:
+        if step.robot == self.plan.parent and creep > 0:
             # The standing children creep once per leg of the parent (twin.sim.rig.creep),
             # from their own stream: switching creep on changes no other draw.
-            self._leg_started = True
-            if self._creep_draws is None:
-                self._creep_draws = Draws(self.seeds, 0, stream=CREEP_BATCH_STREAM)
-            for child in self.plan.children:
-                self.robots[child].true[:, :2] += creep * self._creep_draws.take(2)
+            index = np.arange(self.trials)[r]
+            fresh = index[~self._leg_started[index]]
+            if len(fresh):
+                self._leg_started[fresh] = True
+                if self._creep_draws is None:
+                    self._creep_draws = Draws(self.seeds, 0, stream=CREEP_BATCH_STREAM)
+                picked = None if len(fresh) == self.trials else fresh
+                for child in self.plan.children:
+                    self.robots[child].true[fresh, :2] += creep * self._creep_draws.take(
+                        2, rows=picked
+                    )
 
     # -- shots -----------------------------------------------------------------------------
-    def _instrument(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The instrument's true centre (T, 3), m, and orientation (T, 3, 3) in W."""
+    def _instrument(self, r: Rows) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The instrument's true centre (R, 3), m, and orientation (R, 3, 3) in W."""
         parent = self.robots[self.plan.parent]
         nominal = parent.nominal
-        assert nominal.instrument is not None
-        assert nominal.instrument2world is not None
-        centre = parent.moved(nominal.instrument)
-        turn = rot_z(parent.true[:, 2] - nominal.pose[2])
-        return centre, turn @ nominal.instrument2world
+        centre = parent.moved(nominal["instrument"][r][:, None, :], r)[:, 0]
+        turn = rot_z(parent.true[r, 2] - nominal["pose"][r, 2])
+        return centre, turn @ nominal["orientation"][r]
 
-    def _cubes(self, child: str) -> NDArray[np.float64]:
-        """(T, 3, 3) the child's true cubes in W, its assembly's surveying error included."""
+    def _cubes(self, child: str, r: Rows) -> NDArray[np.float64]:
+        """(R, 3, 3) the child's true cubes in W, its assembly's surveying error included."""
         robot = self.robots[child]
-        assert robot.nominal.cubes is not None
-        error = np.einsum("tij,tkj->tki", rot_z(robot.true[:, 2]), self.built[child][0])
-        return robot.moved(robot.nominal.cubes) + error
+        error = np.einsum("tij,tkj->tki", rot_z(robot.true[r, 2]), self.built[child][0][r])
+        return robot.moved(robot.nominal["cubes"][r], r) + error
 
-    def _leds(self, child: str) -> NDArray[np.float64]:
-        """(T, N_led, 3) the child's true LEDs in W."""
+    def _leds(self, child: str, r: Rows) -> NDArray[np.float64]:
+        """(R, N_led, 3) the child's true LEDs in W."""
         robot = self.robots[child]
-        assert robot.nominal.leds is not None
-        error = np.einsum("tij,tkj->tki", rot_z(robot.true[:, 2]), self.built[child][1])
-        return robot.moved(robot.nominal.leds) + error
+        error = np.einsum("tij,tkj->tki", rot_z(robot.true[r, 2]), self.built[child][1][r])
+        return robot.moved(robot.nominal["leds"][r], r) + error
 
-    def _shots(self, child: str) -> NDArray[np.float64]:
-        """(T, 3, 3) levelled, rounded polar shots at the child's three cubes."""
-        centre, orientation = self._instrument()
+    def _shots(self, child: str, r: Rows) -> NDArray[np.float64]:
+        """(R, 3, 3) levelled, rounded polar shots at the child's three cubes."""
+        centre, orientation = self._instrument(r)
         # In the instrument's (tilted) frame: R^T (p - c).
-        local = np.einsum("tji,tkj->tki", orientation, self._cubes(child) - centre[:, None])
+        local = np.einsum("tji,tkj->tki", orientation, self._cubes(child, r) - centre[:, None])
         # The instrument's tilt is the nominal station's (a turn about z leaves it).
-        roll, pitch = tilt_from_orientation(self.robots[self.plan.parent].nominal.instrument2world)
+        tilt = self.robots[self.plan.parent].nominal["tilt"][r]
         polar = cartesian2polar(local)
-        noisy = normalise_polar(polar + polar_sigmas(polar, self.spec) * self.draws.take(3, 3))
-        reading = self.inclinometer.sigma * self.draws.take(3, 2)
+        picked = self._picked(r)
+        noisy = normalise_polar(
+            polar + polar_sigmas(polar, self.spec) * self.draws.take(3, 3, rows=picked)
+        )
+        reading = self.inclinometer.sigma * self.draws.take(3, 2, rows=picked)
         levelled = level_points(
-            polar2cartesian(noisy), roll + reading[..., 0], pitch + reading[..., 1]
+            polar2cartesian(noisy), tilt[:, :1] + reading[..., 0], tilt[:, 1:] + reading[..., 1]
         )
         return quantise_polar(cartesian2polar(levelled), self.spec)
 
-    def _observe(self, child: str) -> Observations:
+    def _observe(self, child: str, r: Rows) -> Observations:
         obs = self.estimators.observe(
-            self._shots(child), self.advertised, self.advertised_tilt, self.marker, FALSE_ALARM_RATE
+            self._shots(child, r),
+            self.advertised,
+            self.advertised_tilt,
+            self.marker,
+            FALSE_ALARM_RATE,
         )
-        self.failures += obs.inconsistent
+        self.failures[r] += obs.inconsistent
         return obs
 
     # -- CPS -------------------------------------------------------------------------------
-    def _place(self, child: str) -> None:
-        obs = self._observe(child)
-        self.cps.children_moved(child, obs)
-        if self.network is not None:
-            self.network.stand(child, obs.point, obs.covariance, self.cps.child_position(child))
-        parent = self.cps.parent
-        # The child's localisation is corrected from its marker's pose (as the campaign does).
-        r = parent.rotation @ obs.rotation
-        origin = parent.level2world(obs.translation[:, None, :])[:, 0]
-        self.robots[child].believed = np.column_stack(
-            [origin[:, 0], origin[:, 1], np.arctan2(r[:, 1, 0], r[:, 0, 0])]
-        )
-        self.placed[child] = (obs, parent)
+    def _cps(self, r: Rows) -> CpsStates:
+        """The CPS states of the trials ``r`` (write them back with :meth:`_cps_done`)."""
+        return self.cps if isinstance(r, slice) else self.cps.on_rows(r)
 
-    def _fix(self, children: tuple[str, ...]) -> None:
-        self._leg_started = False  # the parent's next drive starts a leg
-        observations = [(child, self._observe(child)) for child in children]
-        self.failures += self.cps.parent_moved(observations)
-        parent = self.cps.parent
-        self.robots[self.plan.parent].believed = np.column_stack(
+    def _cps_done(self, r: Rows, part: CpsStates) -> None:
+        if not isinstance(r, slice):
+            self.cps.put_rows(r, part)
+
+    def _place(self, child: str, r: Rows) -> None:
+        obs = self._observe(child, r)
+        cps = self._cps(r)
+        cps.children_moved(child, obs)
+        self._cps_done(r, cps)
+        if self.network is not None:
+            self.network.stand(child, obs.point, obs.covariance, cps.child_position(child))
+        parent = cps.parent
+        # The child's localisation is corrected from its marker's pose (as the campaign does).
+        rotation = parent.rotation @ obs.rotation
+        origin = parent.level2world(obs.translation[:, None, :])[:, 0]
+        self.robots[child].believed[r] = np.column_stack(
+            [origin[:, 0], origin[:, 1], np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0])]
+        )
+        if isinstance(r, slice):
+            self.placed[child] = (obs, parent)
+        else:
+            before = self.placed.get(child, (None, None))
+            self.placed[child] = (
+                _put(before[0], r, obs, self.trials),
+                _put(before[1], r, parent, self.trials),
+            )
+
+    def _fix(self, children: tuple[str, ...], r: Rows) -> None:
+        self._leg_started[r] = False  # the parent's next drive starts a leg
+        observations = [(child, self._observe(child, r)) for child in children]
+        cps = self._cps(r)
+        self.failures[r] += cps.parent_moved(observations)
+        self._cps_done(r, cps)
+        parent = cps.parent
+        self.robots[self.plan.parent].believed[r] = np.column_stack(
             [parent.translation[:, 0], parent.translation[:, 1], parent.yaw]
         )
-        centre, _ = self._instrument()
-        self._record_fix(centre)
+        centre, _ = self._instrument(r)
+        self._record_fix(parent, centre, r)
         if self.network is not None:
             for child, obs in observations:
                 self.network.sight(child, obs.point, obs.covariance)
 
-    def _record_fix(self, true_centre: NDArray[np.float64] | None) -> None:
-        parent = self.cps.parent
-        if self.fixes:
-            last = self.fixes[-1][0].translation[:, :2]
-            self.distance = self.distance + np.linalg.norm(parent.translation[:, :2] - last, axis=1)
-        truth = np.zeros((self.trials, 3)) if true_centre is None else true_centre
-        self.fixes.append((parent, np.broadcast_to(truth, (self.trials, 3))))
+    def _record_fix(
+        self, parent: ParentEstimates, true_centre: NDArray[np.float64], r: Rows
+    ) -> None:
+        """The trials ``r`` fixed the parent at ``parent`` (R rows); its instrument truly
+        stood at ``true_centre`` (R, 3)."""
+        if self.last_estimate is not None:
+            last = self.last_estimate.translation[r][:, :2]
+            distance = self.distance.copy()
+            distance[r] += np.linalg.norm(parent.translation[:, :2] - last, axis=1)
+            self.distance = distance
+        if isinstance(r, slice):
+            self.last_estimate, self.last_truth = parent, np.asarray(true_centre, dtype=float)
+        else:
+            self.last_estimate = _put(self.last_estimate, r, parent, self.trials)
+            self.last_truth = _put(
+                self.last_truth, r, np.asarray(true_centre, dtype=float), self.trials
+            )
+        index = np.arange(self.trials)[r]
+        for i, k in enumerate(index):
+            self.tracks[k].append(parent.translation[i])
         if self.network is not None:
             self.network.station(parent.yaw, parent.translation)
 
-    # -- data and calibrations -------------------------------------------------------------
-    def _dataset(self, step: Point | DataSetDone | Calibrate, name: str | None = None) -> _DataSet:
-        key = (name or getattr(step, "dataset", "visit"), step.camera, step.visit)
-        return self.datasets.setdefault(key, _DataSet())
+    def track(self, row: int) -> list[NDArray[np.float64]]:
+        """(3,) the parent's estimated instrument centre at each of its fixes in trial
+        ``row`` (since its last restart), m (W)."""
+        return list(self.tracks[row])
 
-    def _point(self, step: Point) -> None:
+    # -- data and calibrations -------------------------------------------------------------
+    def _dataset(self, key: tuple[str, str, int], r: Rows, open_only: bool = False) -> _DataSet:
+        """The data set ``key`` (dataset, camera, visit) of the trials ``r``: the latest
+        they took together (``open_only``: still being taken), or a new one."""
+        index = np.arange(self.trials)[r]
+        cohorts = self.datasets.setdefault(key, [])
+        for data in reversed(cohorts):
+            if (
+                np.array_equal(data.rows, index)
+                and data.alive.all()
+                and not (open_only and data.size is not None)
+            ):
+                return data
+        data = _DataSet(index, np.ones(len(index), dtype=bool))
+        cohorts.append(data)
+        return data
+
+    def _point(self, step: Point, r: Rows) -> None:
         obs, parent = self.placed[step.child]
+        if not isinstance(r, slice):
+            obs, parent = _take(obs, r), _take(parent, r)
+        n = self._count(r)
         leds_level, cov_level = self.estimators.leds(obs, self.marker)
         world = parent.level2world(leds_level)
         # The levelled frame turns about z into W: each LED's 3 x 3 block turns with it.
         turn = np.kron(np.eye(leds_level.shape[1]), parent.rotation)
         camera = self.plan.cameras[step.camera]
-        true = self._leds(step.child)
-        pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(self.trials, -1, 2)
+        true = self._leds(step.child, r)
+        pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(n, -1, 2)
         # An LED is found when all of its blob lies in the image (as the camera's sensor
         # has it).
         distance = np.linalg.norm(true - camera.position, axis=2)
         margin = camera.f * self.plan.led_radii[step.child] / distance
         seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
-        seen = seen.reshape(self.trials, -1)
-        pixels = pixels + self.led_px[step.camera] * self.draws.take(true.shape[1], 2)
+        seen = seen.reshape(n, -1)
+        pixels = pixels + self.led_px[step.camera] * self.draws.take(
+            true.shape[1], 2, rows=self._picked(r)
+        )
         leds = np.asarray(step.leds, dtype=np.intp)
         if len(leds) < true.shape[1]:
             # The LEDs the plan's camera found at this stop; the others give no point.
             world, pixels, seen = world[:, leds], pixels[:, leds], seen[:, leds]
         missed = _missed(seen, step.partial)
-        self.failures += missed.any(axis=1)
+        self.failures[r] += missed.any(axis=1)
         world = np.where(missed[..., None], np.nan, world)
         pixels = np.where(missed[..., None], np.nan, pixels)
-        data = self._dataset(step)
+        data = self._dataset((step.dataset, step.camera, step.visit), r, open_only=True)
         data.points.append(world)
         data.pixels.append(pixels)
         data.covariances.append(turn @ cov_level @ np.swapaxes(turn, 1, 2))
         # The assembly's surveying error, turned with the child (the same at every stop).
         data.children.append(step.child)
         data.surveys.append(
-            survey_loading(self.marker, rot_z(self.robots[step.child].true[:, 2]))
+            survey_loading(self.marker, rot_z(self.robots[step.child].true[r, 2]))
             if self.marker.survey_sigma > 0
             else np.zeros((0, 0))
         )
-        if self.network is not None and getattr(step, "dataset", "visit") == "visit":
+        if self.network is not None and step.dataset == "visit":
             rows = (3 * leds[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
             cov = data.covariances[-1][:, rows][:, :, rows]
             survey = data.surveys[-1]
@@ -544,8 +767,31 @@ class BatchRun:
             )
         data.leds.append(leds)
 
-    def _calibrate(self, step: Calibrate) -> None:
-        data = self._dataset(step, "visit")
+    def _reference(
+        self, camera: str, r: Rows
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """(R, n, 3) points and (R, n, 2) pixels of the camera's reference data set of each
+        of the trials ``r`` (the latest each took), or None where one has none."""
+        index = np.arange(self.trials)[r]
+        points: list[NDArray[np.float64]] = []
+        pixels: list[NDArray[np.float64]] = []
+        for k in index:
+            for data in reversed(self.datasets.get(("reference", camera, 0), [])):
+                where = np.flatnonzero((data.rows == k) & data.alive)
+                if len(where) and data.points:
+                    pts, pix = data.arrays(data.size)
+                    points.append(pts[where[0]])
+                    pixels.append(pix[where[0]])
+                    break
+            else:
+                return None
+        if len({p.shape for p in points}) > 1:
+            return None
+        return np.stack(points), np.stack(pixels)
+
+    def _calibrate(self, step: Calibrate, r: Rows) -> None:
+        data = self._dataset(("visit", step.camera, step.visit), r)
+        n = self._count(r)
         points, pixels = data.arrays(step.points)
         # A trial that gave up too many stops is not calibrated (the campaign's rule).
         too_few = found(points, pixels).sum(axis=1) < self.plan.scenario.campaign.min_points
@@ -559,12 +805,13 @@ class BatchRun:
             )
         position_error, rotation_error = est.truth_errors(cal, truth)
         local = est.evaluate(cal, points, pixels)
-        reference = self.datasets.get(("reference", step.camera, 0))
-        if reference is not None and reference.points:
-            world = est.evaluate(cal, *reference.arrays(reference.size))
+        reference = self._reference(step.camera, r)
+        if reference is not None:
+            world = est.evaluate(cal, *reference)
         else:
-            world = (np.full(self.trials, np.nan), np.full(self.trials, np.nan))
-        parent = self.fixes[-1][0]
+            world = (np.full(n, np.nan), np.full(n, np.nan))
+        assert self.last_estimate is not None
+        parent = self.last_estimate if isinstance(r, slice) else _take(self.last_estimate, r)
         own = own_position_variance(
             cal.position_std,
             cal.sigma_px,
@@ -577,9 +824,9 @@ class BatchRun:
                 axis2=2,
             ),
         )
-        self.visits[(step.camera, step.visit)] = VisitOutcome(
+        outcome = VisitOutcome(
             points=np.isfinite(pixels).all(axis=2).sum(axis=1),
-            distance=self.distance.copy(),
+            distance=self.distance[r].copy(),
             position_error=position_error,
             rotation_error=rotation_error,
             position_offset=np.where(
@@ -593,10 +840,54 @@ class BatchRun:
             predicted_calibration=np.sqrt(own),
             calibrated=cal.calibrated,
         )
+        key = (step.camera, step.visit)
+        if isinstance(r, slice):
+            self.visits[key] = outcome
+        else:
+            self.visits[key] = _put(self.visits.get(key), r, outcome, self.trials)
+
+    # -- trials that start again -----------------------------------------------------------
+    def restart(self, rows: ArrayLike, seeds: Sequence[int]) -> None:
+        """Start the trials ``rows`` (R,) again, each from its new seed: as new trials of
+        the plan, before its first step (the others go on as they were)."""
+        r = self._rows(rows)
+        assert not isinstance(r, slice)
+        if len(seeds) != len(r):
+            raise ValueError(f"{len(seeds)} seeds for {len(r)} rows")
+        self.executed += 1
+        for k, seed in zip(r, seeds, strict=True):
+            self.seeds[k] = int(seed)
+        self.draws.restart(r, seeds)
+        if self._creep_draws is not None:
+            self._creep_draws.restart(r, seeds)
+        for name, truth in self.plan.start.items():
+            robot = self.robots[name]
+            robot.true[r] = truth.pose
+            robot.believed[r] = truth.pose
+            robot.stopped([truth], r)
+        self._build(r)
+        self.cps.reset_rows(r)
+        for key, cohorts in self.datasets.items():
+            for data in cohorts:
+                data.alive &= ~np.isin(data.rows, r)
+            self.datasets[key] = [data for data in cohorts if data.alive.any()]
+        for key, outcome in self.visits.items():
+            self.visits[key] = _put(outcome, r, _blank_rows(outcome, len(r)), self.trials)
+        self._leg_started[r] = False
+        self.distance = self.distance.copy()
+        self.distance[r] = 0.0
+        self.failures[r] = 0
+        # Their first fix: the parent's start, no travel yet.
+        parent = _take(self.cps.parent, r)
+        self.last_estimate = _put(self.last_estimate, r, parent, self.trials)
+        self.last_truth = _put(self.last_truth, r, self._start_centre(len(r)), self.trials)
+        for i, k in enumerate(r):
+            self.tracks[k] = [parent.translation[i]]
 
     def outcome(self) -> BatchOutcome:
         """What the trials gave so far."""
-        parent, truth = self.fixes[-1]
+        assert self.last_estimate is not None
+        parent, truth = self.last_estimate, self.last_truth
         return BatchOutcome(
             calibrations=dict(self.visits),
             parent_error=parent.translation - truth,

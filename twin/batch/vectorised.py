@@ -20,6 +20,7 @@ does, by :func:`calib.calibrate_tsai` from its closed-form stages.
 
 from __future__ import annotations
 
+import copy
 import warnings
 from collections.abc import Sequence
 
@@ -86,6 +87,18 @@ class _BatchCps(CpsStates):
 
     def child_position(self, child: str) -> NDArray[np.float64]:
         return self.sequence.child_position(child)[0]
+
+    def on_rows(self, rows: NDArray[np.intp]) -> CpsStates:
+        part = copy.copy(self)
+        part.sequence = self.sequence.trials(rows)
+        return part
+
+    def put_rows(self, rows: NDArray[np.intp], part: CpsStates) -> None:
+        assert isinstance(part, _BatchCps)
+        self.sequence.set_trials(rows, part.sequence)
+
+    def reset_rows(self, rows: NDArray[np.intp]) -> None:
+        self.sequence.reset_trials(rows)
 
 
 def _observation(child: str, o: Observations) -> ChildObservationBatch:

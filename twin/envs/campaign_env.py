@@ -489,36 +489,60 @@ class CpsCampaignEnv(gym.Env):
             planner.order.index(here) if here in planner.order else None,
         )
 
-    def observations(self, rows: list[int]) -> dict[str, NDArray[np.float64]]:
-        """The observations of ``rows`` of the episode's batch (the episode's and those of
-        the episodes that played its moves in the same batch), each entry (R, ...)."""
+    def _where(self) -> tuple[str | None, NDArray[np.float64], int, Stations, float]:
+        """Where the episode's campaign stands: its decision, the station it travels to
+        ((2,), NaN between travels), the index of the camera whose station it stands at
+        (-1: none), the stations, its time (s)."""
         planner, scenario = self.planner, self.scenario
         assert planner is not None
         assert scenario is not None
+        goal = planner.goal_station
+        here = planner.here_camera()
+        names = [c.name for c in scenario.cameras]
+        return (
+            planner.decision,
+            np.full(2, np.nan) if goal is None or planner.decision != "leg" else goal.xy,
+            -1 if here is None else names.index(here),
+            self._stations(),
+            planner.time,
+        )
+
+    def observations(
+        self, rows: list[int], episodes: list[CpsCampaignEnv] | None = None
+    ) -> dict[str, NDArray[np.float64]]:
+        """The observations of ``rows`` of the episode's batch, each entry (R, ...): the
+        episode's own and those of other episodes of its site whose trials are rows of the
+        same batch (``episodes``, one a row; default this one for every row)."""
+        planner = self.planner
+        assert planner is not None
         assert self._free is not None
         known = self._now()
         assert self._known is not None
-        goal = planner.goal_station
+        where = [e._where() for e in episodes] if episodes else [self._where()] * len(rows)
         distance = known.distance[rows]
-        here = planner.here_camera()
-        names = [c.name for c in scenario.cameras]
+        stations = where[0][3]
         return build_observations(
-            decision=planner.decision,
+            decision=[w[0] for w in where],
             parent_xy=known.parent_xy[rows],
             parent_yaw=known.parent_yaw[rows],
             parent_covariance=known.parent_covariance[rows],
             children_pose=known.children[rows],
             travel=np.column_stack(
-                [distance, planner.budget_m - distance, np.full(len(rows), planner.time)]
+                [distance, planner.budget_m - distance, np.array([w[4] for w in where])]
             ),
-            goal_xy=None if goal is None or planner.decision != "leg" else goal.xy,
+            goal_xy=np.array([w[1] for w in where]).reshape(len(rows), 2),
             camera_xyz=self._known.positions,
             calibrated=known.calibrated[rows],
             predicted_error=known.predicted[rows],
             transfer_now=known.transfer_now[rows],
-            here_camera=None if here is None else names.index(here),
+            here_camera=np.array([w[2] for w in where], dtype=np.int64),
             max_cameras=self.max_cameras,
-            stations=self._stations(),
+            stations=Stations(
+                stations.camera,
+                stations.xy,
+                np.array([w[3].route_distance for w in where]).reshape(len(rows), -1),
+                np.array([-1 if w[3].here is None else w[3].here for w in where], dtype=np.int64),
+            ),
             max_stations=self.layout.max_stations,
             free_space=self._free.rays(known.parent_xy[rows], known.parent_yaw[rows]),
         )
@@ -548,5 +572,5 @@ class CpsCampaignEnv(gym.Env):
             raise RuntimeError("call reset() before render()")
         from twin.envs.render import top_view_rgb
 
-        track = [estimate.translation[self._row] for estimate, _ in self.batch.fixes]
+        track = self.batch.track(self._row)
         return top_view_rgb(self.scenario, self.batch, track, self.camera_errors_mm(), self._row)

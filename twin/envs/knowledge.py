@@ -27,7 +27,8 @@ class Knowledge:
         parent_xy: (T, 2) the instrument's centre, m (W). parent_yaw: (T,) rad.
         parent_covariance: (T, 4, 4) of (yaw rad, x m, y m, z m).
         children: (T, N_child, 3) each child's x, y (its CPS position; its own estimate
-            before CPS measured it), m, and its own yaw, rad.
+            before CPS measured it, or where the trial lost its CPS state), m, and its own
+            yaw, rad.
         calibrated: (T, C) whether the camera has a calibration.
         predicted: (T, C) the predicted RMS world-frame position error of its delivered
             calibration (of the visits that calibrated it, the one with the lowest), m; 0
@@ -89,11 +90,14 @@ def knowledge(
     for k, child in enumerate(batch.plan.children):
         believed = batch.robots[child].believed
         try:
-            children[:, k, :2] = batch.cps.child_position(child)[:, :2]
-        except ValueError:  # not measured yet
-            children[:, k, :2] = believed[:, :2]
+            placed = batch.cps.child_position(child)[:, :2]
+        except ValueError:  # not measured yet in any trial
+            placed = np.full((t, 2), np.nan)
+        # A trial that has not measured it yet (or lost its CPS state): its own estimate.
+        children[:, k, :2] = np.where(np.isnan(placed), believed[:, :2], placed)
         children[:, k, 2] = believed[:, 2]
-    estimate, truth = batch.fixes[-1]
+    estimate, truth = batch.last_estimate, batch.last_truth
+    assert estimate is not None
     return Knowledge(
         parent_xy=parent.translation[:, :2].copy(),
         parent_yaw=np.asarray(parent.yaw, dtype=float).copy(),

@@ -4,6 +4,7 @@ knows (its estimates and their covariances), nothing from the twin's truth."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,14 +120,15 @@ class Stations:
 
     Attributes:
         camera: (S,) each one's camera's index in the site (0 for the first).
-        xy: (S, 2) m (W). route_distance: (S,) the parent's travel to each, m.
-        here: the index of the station the parent stands at, or None.
+        xy: (S, 2) m (W). route_distance: (S,) the parent's travel to each, m, or (R, S)
+            one row a trial. here: the index of the station the parent stands at, or None;
+            or (R,) one a trial, -1 for none.
     """
 
     camera: NDArray[np.int64]
     xy: NDArray[np.float64]
     route_distance: NDArray[np.float64]
-    here: int | None
+    here: int | NDArray[np.int64] | None
 
 
 def bearings(
@@ -145,9 +147,28 @@ def bearings(
     )
 
 
+def _per_row(value: int | NDArray[np.int64] | None, n_rows: int) -> NDArray[np.int64]:
+    """(R,) an index for every row (-1: none) from one for all (None: none) or (R,)."""
+    if value is None:
+        return np.full(n_rows, -1, dtype=np.int64)
+    return np.broadcast_to(np.asarray(value, dtype=np.int64), (n_rows,))
+
+
+def _mark(table: NDArray[np.float64], index: NDArray[np.int64], column: int) -> None:
+    """Set ``table[r, index[r], column] = 1`` where ``index[r] >= 0``."""
+    rows = np.flatnonzero(index >= 0)
+    table[rows, index[rows], column] = 1.0
+
+
+def _decisions(decision: str | Sequence[str | None] | None, n_rows: int) -> NDArray[np.float64]:
+    """(R, 2) whether each trial is at a leg, between travels."""
+    each = [decision] * n_rows if decision is None or isinstance(decision, str) else decision
+    return np.array([[d == "leg", d == "visit"] for d in each], dtype=float).reshape(n_rows, 2)
+
+
 def build_observations(
     *,
-    decision: str | None,
+    decision: str | Sequence[str | None] | None,
     parent_xy: NDArray[np.float64],
     parent_yaw: NDArray[np.float64],
     parent_covariance: NDArray[np.float64],
@@ -158,24 +179,29 @@ def build_observations(
     calibrated: NDArray[np.bool_],
     predicted_error: NDArray[np.float64],
     transfer_now: NDArray[np.float64],
-    here_camera: int | None,
+    here_camera: int | NDArray[np.int64] | None,
     max_cameras: int,
     stations: Stations,
     max_stations: int,
     free_space: NDArray[np.float64],
 ) -> dict[str, NDArray[np.float64]]:
-    """The observations (see :data:`ENTRIES`) of R trials of one campaign (the same
-    decision, goal and stations), each entry with a leading axis of R, every value finite.
+    """The observations (see :data:`ENTRIES`) of R trials of one site, each entry with a
+    leading axis of R, every value finite. What the campaigns' planners say (``decision``,
+    ``goal_xy``, ``here_camera``, the stations' route distances and ``here``) is one for
+    every trial, or one a trial.
 
     Args:
         parent_xy: (R, 2) m. parent_yaw: (R,) rad. parent_covariance: (R, 4, 4) of
             (yaw rad, x m, y m, z m). children_pose: (R, N_child, 3) x m, y m, yaw rad.
         travel: (R, 3) distance travelled m, budget left m, campaign time s.
-        goal_xy: (2,) the station travelled to (at a leg), m, or None.
+        decision: ``leg``, ``visit`` or None, or one of them a trial.
+        goal_xy: (2,) the station travelled to (at a leg), m, or None; or (R, 2) one a
+            trial, NaN for none.
         camera_xyz: (C, 3) the cameras' nominal positions, m. calibrated,
             predicted_error, transfer_now: (R, C) (see
             :class:`twin.envs.knowledge.Knowledge`), m. here_camera: the index of the
-            camera whose station the parent stands at, or None.
+            camera whose station the parent stands at, or None; or (R,) one a trial, -1
+            for none.
         stations: the calibration stations. free_space: (R, DIRECTIONS) m.
     """
     n_rows, n_cams = calibrated.shape
@@ -188,8 +214,7 @@ def build_observations(
         cameras[:, :n_cams, 2] = predicted_error
         cameras[:, :n_cams, 3] = transfer_now
         cameras[:, :n_cams, 4:7] = np.stack([rng, c, s], axis=-1)
-        if here_camera is not None:
-            cameras[:, here_camera, 7] = 1.0
+        _mark(cameras, _per_row(here_camera, n_rows), 7)
     table = np.zeros((n_rows, max_stations, len(STATION_COLUMNS)))
     n_st = len(stations.camera)
     if n_st:
@@ -199,20 +224,26 @@ def build_observations(
         table[:, :n_st, 2] = calibrated[:, stations.camera]
         table[:, :n_st, 3] = stations.route_distance
         table[:, :n_st, 4:7] = np.stack([rng, c, s], axis=-1)
-        if stations.here is not None:
-            table[:, stations.here, 7] = 1.0
+        _mark(table, _per_row(stations.here, n_rows), 7)
     goal = np.zeros((n_rows, 4))
     if goal_xy is not None:
-        rng, c, s = bearings(parent_xy, parent_yaw, np.asarray(goal_xy, dtype=float)[None])
-        goal[:, 0] = 1.0
-        goal[:, 1:] = np.concatenate([rng, c, s], axis=1)
+        target = np.broadcast_to(np.asarray(goal_xy, dtype=float), (n_rows, 2))
+        going = np.flatnonzero(np.isfinite(target).all(axis=1))
+        d = target[going] - parent_xy[going, :2]
+        rng = np.hypot(d[:, 0], d[:, 1])
+        angle = np.arctan2(d[:, 1], d[:, 0]) - parent_yaw[going]
+        there = rng < 1e-9
+        goal[going, 0] = 1.0
+        goal[going, 1] = np.where(there, 0.0, rng)
+        goal[going, 2] = np.where(there, 1.0, np.cos(angle))
+        goal[going, 3] = np.where(there, 0.0, np.sin(angle))
     children = np.zeros((n_rows, 2, 4))
     shown = min(2, children_pose.shape[1])
     children[:, :shown, :2] = children_pose[:, :shown, :2]
     children[:, :shown, 2] = np.cos(children_pose[:, :shown, 2])
     children[:, :shown, 3] = np.sin(children_pose[:, :shown, 2])
     obs = {
-        "decision": np.tile([decision == "leg", decision == "visit"], (n_rows, 1)).astype(float),
+        "decision": _decisions(decision, n_rows),
         "parent": np.column_stack(
             [parent_xy[:, 0], parent_xy[:, 1], np.cos(parent_yaw), np.sin(parent_yaw)]
         ),

@@ -162,6 +162,9 @@ class StandSite:
         self.legs: dict[tuple[object, ...], _Leg | None] = {}
         self._truths: dict[tuple[str, tuple[float, ...]], RobotTruth] = {}
         self._data_steps: dict[tuple[str, int], tuple[Step, ...]] = {}
+        self._distances: dict[int, dict[str, float]] = {}
+        self._here: dict[int, str | None] = {}
+        self._headings: dict[int, float] = {}
         self._session = PlanSession(scenario, "paper")
         try:
             self._record(self._session)
@@ -250,6 +253,34 @@ class StandSite:
         inside = [s for s in self.stands if s.station is None and lo + 1e-6 < s.arc < hi - 1e-6]
         inside.sort(key=lambda s: direction * s.arc)
         return [*inside, end], direction
+
+    def distances(self, here: Stand) -> dict[str, float]:
+        """The parent's travel along the route from ``here`` to each station, m (by name;
+        worked out once per stand)."""
+        found = self._distances.get(here.index)
+        if found is None:
+            path = self.path
+            off = float(np.linalg.norm(path.at(here.arc) - here.xy))
+            found = self._distances[here.index] = {
+                name: abs(st.arc - here.arc) + off + float(np.linalg.norm(path.at(st.arc) - st.xy))
+                for name, st in self.stations.items()
+            }
+        return found
+
+    def heading(self, stand: Stand) -> float:
+        """The route's heading at a stand, rad (worked out once per stand)."""
+        found = self._headings.get(stand.index)
+        if found is None:
+            found = self._headings[stand.index] = self.path.heading(stand.arc)
+        return found
+
+    def station_at(self, here: Stand) -> str | None:
+        """The station within reach of ``here`` (the nearest), or None."""
+        if here.index not in self._here:
+            near = {n: float(np.linalg.norm(st.xy - here.xy)) for n, st in self.stations.items()}
+            name = min(near, key=near.__getitem__)
+            self._here[here.index] = name if near[name] < ARRIVED else None
+        return self._here[here.index]
 
     def children_order(self, direction: float) -> list[str]:
         """The two children, the one ahead along the route (at the start) first."""
@@ -426,10 +457,7 @@ class StandPlanner:
 
     def here(self) -> str | None:
         """The station the parent stands at (the nearest within reach), or None."""
-        xy = self._stand.xy
-        near = {n: float(np.linalg.norm(st.xy - xy)) for n, st in self.stations.items()}
-        name = min(near, key=near.__getitem__)
-        return name if near[name] < ARRIVED else None
+        return self.site.station_at(self._stand)
 
     def here_camera(self) -> str | None:
         """The camera whose station the parent stands at, or None."""
@@ -443,12 +471,7 @@ class StandPlanner:
 
     def route_distance(self, station: Station) -> float:
         """The parent's travel along the route to a station, m."""
-        path, stand = self.site.path, self._stand
-        return (
-            abs(station.arc - stand.arc)
-            + float(np.linalg.norm(path.at(stand.arc) - stand.xy))
-            + float(np.linalg.norm(path.at(station.arc) - station.xy))
-        )
+        return self.site.distances(self._stand)[station.name]
 
     # -- moves ------------------------------------------------------------------------------
     def take_pending(self) -> tuple[Step, ...]:
@@ -521,15 +544,17 @@ class StandPlanner:
             assert self._goal is not None
             margins = sight_margins(self.parent_std())
             goal = self.stations[self._goal]
-            self._legs = []
-            for name in layout.formations:
-                for factor in layout.step_factors:
-                    to = self._travel[min(self.site.cells[factor], len(self._travel)) - 1]
-                    back = 0.0 if self._direction > 0 else math.pi
-                    heading = goal.yaw if to.station else self.site.path.heading(to.arc) + back
-                    self._legs.append(
-                        self.site.leg(self._stand, to, self._direction, name, margins, heading)
-                    )
+            back = 0.0 if self._direction > 0 else math.pi
+            ends = []
+            for factor in layout.step_factors:
+                to = self._travel[min(self.site.cells[factor], len(self._travel)) - 1]
+                heading = goal.yaw if to.station else self.site.heading(to) + back
+                ends.append((to, heading))
+            self._legs = [
+                self.site.leg(self._stand, to, self._direction, name, margins, heading)
+                for name in layout.formations
+                for to, heading in ends
+            ]
             mask[: layout.legs] = [leg is not None for leg in self._legs]
             if not mask.any():
                 mask[layout.end] = True  # no room for any formation: the campaign ends

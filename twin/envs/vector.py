@@ -2,23 +2,29 @@
 together: ``gymnasium.make_vec("camnet/CpsCampaign-v0", num_envs=N)`` (the registered
 ``vector_entry_point``).
 
-Episodes that have played the same moves on the same site have executed the same plan
-steps: they form a group, whose trials are the rows of one batch
-(:class:`twin.batch.execute.BatchRun`), and a step of the plan runs once for all of them;
-what the batch knows after it (:mod:`twin.envs.knowledge`) is computed once too, and the
-group's observations are built in one call.
-When the members of a group choose different moves, the largest part keeps the batch and
-each other part replays the group's steps into a batch of its own (a trial gives the same
-result alone or in any batch, so a split changes no number). Episodes that reset at the
-same step on the same site start a group together.
+The episodes on one site are the rows of one batch (:class:`twin.batch.execute.BatchRun`),
+each its own campaign: at every step each episode's move gives its plan steps, and
+:func:`twin.batch.rows.execute_rows` runs them all, rows that take the same kind of step at
+once (the legs' drives, placements and fixes in lock step; data sets for the rows that take
+the same ones). What the batch knows after a step (:mod:`twin.envs.knowledge`) is computed
+once for every row, and the observations of episodes whose campaigns stand at the same
+decision are built in one call.
 
-Policies that repeat their moves (the paper's, a policy under evaluation) then cost one
-batch per group; random moves split every group at the first decision, and run as fast as
-separate environments.
+Starting an episode runs the site's reference data (a hundred steps or so), which would
+cost more than the moves of random play. So each episode has a spare row, which starts its
+next episode ahead (its noise seed is known: it comes from the episode's own generator),
+together with the episodes that have to start at once: an episode that ends takes its
+spare, and most resets cost nothing.
+
+A trial gives the same result alone or in any batch, so every episode is the single
+environment's, bit for bit. Policies that repeat their moves share their steps' runs;
+random moves on the site's table (``planner="stands"``) share the legs' rounds and the
+knowledge.
 """
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,6 +36,7 @@ from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun
 from twin.batch.plan import Step
+from twin.batch.rows import execute_rows
 from twin.envs.campaign_env import CpsCampaignEnv
 from twin.envs.knowledge import BatchKnowledge
 
@@ -37,19 +44,34 @@ __all__ = ["CpsCampaignVectorEnv"]
 
 
 @dataclass
-class _Group:
-    """Episodes that have played the same moves on one site: rows of one batch.
+class _Pool:
+    """The episodes on one site: rows of one batch (two an episode: the one it plays and
+    its spare).
 
     Attributes:
-        batch: their trials. history: every plan step the batch executed, in order.
-        known: what the batch knows (computed once per step for every member).
-        members: each member's environment index and its row.
+        site: the planners' shared table or memo of the site (kept: it names the pool).
+        batch: the trials. known: what they know (computed once per step for every row).
+        members: the episodes on the site now.
     """
 
+    site: object
     batch: BatchRun
-    history: list[Step]
     known: BatchKnowledge
-    members: dict[int, int] = field(default_factory=dict)
+    members: set[int] = field(default_factory=set)
+
+
+@dataclass
+class _Starts:
+    """The episodes of a pool that start at a step.
+
+    Attributes:
+        pool: their pool. rows: the rows restarted, with their seeds (those that take a
+            spare are not). episodes: each episode's start steps.
+    """
+
+    pool: _Pool
+    rows: dict[int, int] = field(default_factory=dict)
+    episodes: dict[int, tuple[Step, ...]] = field(default_factory=dict)
 
 
 class CpsCampaignVectorEnv(VectorEnv):
@@ -81,7 +103,13 @@ class CpsCampaignVectorEnv(VectorEnv):
         self.single_action_space = self.envs[0].action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self._groups: list[_Group] = []
+        self._pools: dict[int, _Pool] = {}  # by the id of the site's table or memo
+        # Episode k's rows in its site's batch: the one it plays, and a spare that starts its
+        # next episode ahead (with others that start, to share their steps).
+        self._active = np.arange(num_envs)
+        self._spare = np.arange(num_envs, 2 * num_envs)
+        self._spare_seed: list[int | None] = [None] * num_envs
+        self._home: dict[int, _Pool] = {}
         self._steps = np.zeros(num_envs, dtype=np.int64)
         self._autoreset = np.zeros(num_envs, dtype=bool)
 
@@ -102,9 +130,9 @@ class CpsCampaignVectorEnv(VectorEnv):
             seeds = list(seed)
         if len(seeds) != self.num_envs:
             raise ValueError(f"{len(seeds)} seeds for {self.num_envs} environments")
-        self._groups = []
+        self._pools, self._home = {}, {}
         self._autoreset[:] = False
-        self._start(list(range(self.num_envs)), seeds, options)
+        self._run(self._start(list(range(self.num_envs)), seeds, options))
         infos: dict[str, Any] = {}
         for k, env in enumerate(self.envs):
             infos = self._add_info(infos, env._info(), k)
@@ -112,36 +140,95 @@ class CpsCampaignVectorEnv(VectorEnv):
 
     def _start(
         self, indices: list[int], seeds: list[int | None], options: dict[str, Any] | None
-    ) -> None:
-        """Reset the episodes ``indices``; those on one site start a group together."""
-        starting: dict[int, list[tuple[int, int, tuple[Step, ...]]]] = {}
+    ) -> dict[int, _Starts]:
+        """Reset the episodes ``indices``: each takes its spare row where that has started
+        its episode already, or starts its row of its site's batch again (the spares of the
+        site's other episodes start their next episodes with it). Returns, by pool, the
+        rows restarted, whose start steps are yet to run (:meth:`_run`)."""
+        if options is not None or any(seed is not None for seed in seeds):
+            self._spare_seed = [None] * self.num_envs  # the generators start again
+        starts: dict[int, _Starts] = {}
         for k, seed in zip(indices, seeds, strict=True):
             env = self.envs[k]
             self._leave(k)
             gymnasium.Env.reset(env, seed=seed)
             scenario, trial_seed = env._draw(options)
             steps = env._prepare(scenario, trial_seed)
-            assert env.planner is not None
-            starting.setdefault(id(env.planner.memo), []).append((k, trial_seed, steps))
+            pool = self._pool_of(k)
+            if self._home.get(k) is not pool:
+                self._spare_seed[k] = None  # its spare was started on another site
+            self._home[k] = pool
+            pool.members.add(k)
             self._steps[k] = 0
-        for episodes in starting.values():
-            first = self.envs[episodes[0][0]]
-            assert first.planner is not None
-            steps = episodes[0][2]
-            batch = BatchRun(first.planner.plan, [trial for _, trial, _ in episodes])
-            for step in steps:
-                batch.step(step)
-            group = _Group(batch, list(steps), first.knowledge_of(batch))
-            for row, (k, _, _) in enumerate(episodes):
-                group.members[k] = row
-                self.envs[k]._attach(batch, row, steps, group.known)
-            self._groups.append(group)
+            part = starts.setdefault(id(pool), _Starts(pool))
+            if self._spare_seed[k] == trial_seed:
+                self._active[k], self._spare[k] = self._spare[k], self._active[k]
+                self._spare_seed[k] = None
+            else:
+                part.rows[self._active[k]] = trial_seed
+            part.episodes[k] = steps
+        self._pools = {key: p for key, p in self._pools.items() if p.members}
+        for part in starts.values():
+            if not part.rows:
+                continue
+            for j in sorted(part.pool.members):
+                if self._spare_seed[j] is None:
+                    predicted = self._next_seed(j)
+                    if predicted is not None:
+                        part.rows[self._spare[j]] = predicted
+                        self._spare_seed[j] = predicted
+            part.pool.batch.restart(list(part.rows), list(part.rows.values()))
+        return starts
+
+    def _run(
+        self,
+        starts: dict[int, _Starts],
+        moves: dict[int, tuple[int, tuple[Step, ...]]] | None = None,
+    ) -> None:
+        """Run, on each site's batch, the start steps of the rows restarted and the moves'
+        steps (episode -> (action, steps)) at once; then attach the episodes started."""
+        moves = moves or {}
+        for pool in self._pools.values():
+            work: dict[int, tuple[Step, ...]] = {
+                self.envs[k]._row: moves[k][1] for k in pool.members if k in moves
+            }
+            part = starts.get(id(pool))
+            if part is not None:
+                start = pool.site.start  # type: ignore[attr-defined]
+                work.update(dict.fromkeys(part.rows, start))
+            execute_rows(pool.batch, work)
+        for part in starts.values():
+            for k, steps in part.episodes.items():
+                self.envs[k]._attach(part.pool.batch, int(self._active[k]), steps, part.pool.known)
+
+    def _next_seed(self, k: int) -> int | None:
+        """The noise seed of episode ``k``'s next episode if it starts again by itself, on
+        the same site (None where the next site is another)."""
+        env = self.envs[k]
+        if env.default_scenario is None or env.scenario is not env.default_scenario:
+            return None
+        saved = env._np_random
+        env._np_random = copy.deepcopy(saved)  # the draws of its next reset, not taken
+        try:
+            return env._draw(None)[1]
+        finally:
+            env._np_random = saved
+
+    def _pool_of(self, k: int) -> _Pool:
+        """The pool of episode ``k``'s site (made when it is the first on the site)."""
+        env = self.envs[k]
+        assert env.planner is not None
+        site = env.planner.memo
+        pool = self._pools.get(id(site))
+        if pool is None:
+            batch = BatchRun(env.planner.plan, [0] * (2 * self.num_envs))
+            pool = self._pools[id(site)] = _Pool(site, batch, env.knowledge_of(batch))
+        return pool
 
     def _leave(self, k: int) -> None:
-        """Episode ``k`` leaves its group (an empty group is dropped)."""
-        for group in self._groups:
-            group.members.pop(k, None)
-        self._groups = [g for g in self._groups if g.members]
+        """Episode ``k`` leaves its pool."""
+        for pool in self._pools.values():
+            pool.members.discard(k)
 
     # -- steps ---------------------------------------------------------------------------------
     def step(
@@ -168,43 +255,18 @@ class CpsCampaignVectorEnv(VectorEnv):
             for k in range(self.num_envs)
             if k not in resetting
         }
-        if resetting:
-            self._start(resetting, [None] * len(resetting), None)
-        outcomes: dict[int, tuple[int, float, dict[str, Any] | None]] = {}
-        for group in list(self._groups):
-            # Members that take the same steps stay together (the same move gives the same
-            # steps, unless the planner weighs it by the trial's own estimates).
-            parts: dict[tuple[int, int], list[int]] = {}
-            taken_steps: dict[tuple[int, int], tuple[int, tuple[Step, ...]]] = {}
-            fallbacks: dict[int, dict[str, Any] | None] = {}
-            for k in group.members:
-                if k in resetting:
-                    continue
-                taken, fallbacks[k] = resolved[k]
-                planner = self.envs[k].planner
-                assert planner is not None
-                steps = planner.act(taken)
-                taken_steps[(taken, id(steps))] = (taken, steps)
-                parts.setdefault((taken, id(steps)), []).append(k)
-            if not parts:
-                continue
-            # The largest part keeps the batch; the others split off first, from the
-            # group's steps so far.
-            largest = max(parts, key=lambda a: len(parts[a]))
-            order = [a for a in parts if a != largest] + [largest]
-            for key in order:
-                members = parts[key]
-                taken, steps = taken_steps[key]
-                target = group if key == largest else self._split(group, members)
-                for step in steps:
-                    target.batch.step(step)
-                target.history.extend(steps)
-                for k in members:
-                    outcomes[k] = (taken, self.envs[k]._account(taken, steps), fallbacks[k])
+        starts = self._start(resetting, [None] * len(resetting), None) if resetting else {}
+        taken: dict[int, tuple[int, tuple[Step, ...]]] = {}
+        for k, (action, _) in resolved.items():
+            planner = self.envs[k].planner
+            assert planner is not None
+            taken[k] = (action, planner.act(action))
+        self._run(starts, taken)
         for k, env in enumerate(self.envs):
-            if k in outcomes:
-                taken, reward, fallback = outcomes[k]
-                rewards[k], terminated[k], info = env._finish(taken, reward, fallback)
+            if k in taken:
+                action, steps = taken[k]
+                reward = env._account(action, steps)
+                rewards[k], terminated[k], info = env._finish(action, reward, resolved[k][1])
                 self._steps[k] += 1
                 truncated[k] = (
                     not terminated[k]
@@ -217,31 +279,15 @@ class CpsCampaignVectorEnv(VectorEnv):
         self._autoreset = terminated | truncated
         return self._observations(), rewards, terminated, truncated, infos
 
-    def _split(self, group: _Group, members: list[int]) -> _Group:
-        """Move ``members`` out of ``group`` into a batch of their own that has executed
-        the group's steps."""
-        first = self.envs[members[0]]
-        assert first.planner is not None
-        seeds = [self.envs[k].trial_seed for k in members]
-        batch = BatchRun(first.planner.plan, seeds)
-        for step in group.history:
-            batch.step(step)
-        part = _Group(batch, list(group.history), first.knowledge_of(batch))
-        for row, k in enumerate(members):
-            group.members.pop(k)
-            part.members[k] = row
-            self.envs[k]._join(batch, row, part.known)
-        self._groups.append(part)
-        return part
-
     # -- what comes back -----------------------------------------------------------------------
     def _observations(self) -> dict[str, NDArray[np.float64]]:
-        """Every episode's observation, each group's built at once (its members share their
-        campaign's state; their rows of the batch differ)."""
+        """Every episode's observation, those of a site's episodes built at once (their
+        rows of its batch)."""
         out: dict[str, NDArray[np.float64]] = {}
-        for group in self._groups:
-            indices = list(group.members)
-            part = self.envs[indices[0]].observations([group.members[k] for k in indices])
+        for pool in self._pools.values():
+            indices = sorted(pool.members)
+            episodes = [self.envs[k] for k in indices]
+            part = episodes[0].observations([e._row for e in episodes], episodes)
             for key, values in part.items():
                 if key not in out:
                     out[key] = np.zeros((self.num_envs, *values.shape[1:]))

@@ -23,6 +23,7 @@ parent step returns its :class:`CpsSolutionBatch`.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
 import numpy as np
@@ -250,6 +251,38 @@ class CpsBatch:
         self._covariance[lost] = np.nan
         self._advance(obs, timestamp)
         return solution
+
+    # -- some trials only ----------------------------------------------------------------
+    def trials(self, rows: NDArray[np.intp]) -> CpsBatch:
+        """A batch of the trials ``rows`` (R,), as they stand: its steps change nothing here
+        until :meth:`set_trials` writes them back."""
+        part = copy.copy(self)
+        part._state = self._state[rows]
+        part._covariance = self._covariance[rows]
+        part._known = self._known.copy()
+        return part
+
+    def set_trials(self, rows: NDArray[np.intp], part: CpsBatch) -> None:
+        """Take the trials ``rows`` from ``part`` (made by :meth:`trials` with the same rows
+        and stepped since). The other trials are kept; arrays read before stay as they were."""
+        state, covariance = self._state.copy(), self._covariance.copy()
+        state[rows], covariance[rows] = part._state, part._covariance
+        self._state, self._covariance = state, covariance
+        self._known |= part._known
+        self._time = max(self._time, part._time)
+        self._n_steps = max(self._n_steps, part._n_steps)
+
+    def reset_trials(self, rows: NDArray[np.intp], initial_pose: ParentPose | None = None) -> None:
+        """Start the trials ``rows`` again from ``initial_pose`` (default the world origin
+        with zero covariance), no child placed. A child placed in another trial stays
+        known to the batch: place it again in these trials before a parent step."""
+        pose = ParentPose(0.0, np.zeros(3)) if initial_pose is None else initial_pose
+        state, covariance = self._state.copy(), self._covariance.copy()
+        state[rows] = np.nan
+        state[rows, :4] = pose.vector
+        covariance[rows] = 0.0
+        covariance[np.ix_(rows, range(4), range(4))] = pose.covariance
+        self._state, self._covariance = state, covariance
 
     # -- internals -----------------------------------------------------------------------
     def _child_index(self, name: str) -> int:

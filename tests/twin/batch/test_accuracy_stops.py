@@ -80,7 +80,7 @@ def _points_part(plan):
     run = BatchRun(plan, [5], noise=quiet)
     run.run()
     (cal,) = plan.calibrations
-    data = run.datasets[("visit", cal.camera, cal.visit)]
+    (data,) = run.datasets[("visit", cal.camera, cal.visit)]  # every trial took it together
     points, pixels = data.arrays(cal.points)
     est = Vectorised()
     cams = est.calibrate(points, pixels, cal.nominal.image_size, cal.nominal)

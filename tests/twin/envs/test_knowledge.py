@@ -53,7 +53,8 @@ def _batch(visits):
             "child1": SimpleNamespace(believed=believed),
             "child2": SimpleNamespace(believed=believed),
         },
-        fixes=[(parent, np.array([[0.003, 0.004, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.012]]))],
+        last_estimate=parent,
+        last_truth=np.array([[0.003, 0.004, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.012]]),
         distance=np.array([1.0, 2.0, 3.0]),
         executed=0,
     )
