@@ -52,7 +52,7 @@ from twin.envs.observation import (
     build_observations,
     observation_space,
 )
-from twin.envs.planner import CampaignPlanner
+from twin.envs.planner import CampaignPlanner, EpisodePlanner
 from twin.envs.sites import random_site
 from twin.envs.stands import StandPlanner, rounded_std
 from twin.scenario import load_scenario
@@ -178,7 +178,7 @@ class CpsCampaignEnv(gym.Env):
         self.uncalibrated_error_mm = uncalibrated_error_mm
         self.action_space = spaces.Discrete(self.layout.size)
         self.observation_space = observation_space(max_cameras, self.layout.max_stations)
-        self.planner: CampaignPlanner | StandPlanner | None = None
+        self.planner: EpisodePlanner | None = None
         self.batch: BatchRun | None = None
         self.scenario: Scenario | None = None
         self._free: FreeSpace | None = None
@@ -232,7 +232,7 @@ class CpsCampaignEnv(gym.Env):
         budget = self.budget_m
         if budget is None:
             budget = BUDGET_FACTOR * float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
-        planner: CampaignPlanner | StandPlanner
+        planner: EpisodePlanner
         if self.planner_name == "stands":
             planner = StandPlanner(scenario, self.layout, budget)  # may refuse the site
             planner.parent_std = self._parent_std

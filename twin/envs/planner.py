@@ -20,9 +20,11 @@ moves played before are read back, and only new ones run the campaign.
 
 from __future__ import annotations
 
+import abc
 import math
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,10 +47,14 @@ from twin.campaign.strategy import (
 from twin.envs.moves import MoveLayout, formation_settings
 from twin.scenario.schema import CalibrationVisit, Scenario
 
+if TYPE_CHECKING:
+    from twin.envs.stands import StandSite
+
 __all__ = [
     "START",
     "CampaignPlanner",
     "Decision",
+    "EpisodePlanner",
     "LegChoices",
     "PlanMemo",
     "Station",
@@ -405,7 +411,77 @@ def clear_memos() -> None:
     _MEMOS.clear()
 
 
-class CampaignPlanner:
+class EpisodePlanner(abc.ABC):
+    """What an environment asks of the campaign it plays, decision by decision (the
+    campaign itself: :class:`CampaignPlanner`; a site's table:
+    :class:`twin.envs.stands.StandPlanner`).
+
+    Attributes:
+        layout: the moves. budget_m: the parent's travel allowed, m.
+        stations: the calibration stations and ``start``, by name. order: the calibration
+            stations' names in the order of ``go_to``.
+    """
+
+    layout: MoveLayout
+    budget_m: float
+    stations: dict[str, Station]
+    order: tuple[str, ...]
+    decision: str | None  # ``leg``, ``visit``, or None once the campaign is over
+    _pending: tuple[Step, ...]
+
+    @property
+    @abc.abstractmethod
+    def memo(self) -> PlanMemo | StandSite:
+        """What the planners of a site in one process share (its plan, its start)."""
+
+    @property
+    def plan(self) -> BatchPlan:
+        """The campaign's plan before its first step."""
+        return self.memo.plan
+
+    @property
+    @abc.abstractmethod
+    def mask(self) -> NDArray[np.bool_]:
+        """(n,) the moves allowed now (read-only)."""
+
+    @abc.abstractmethod
+    def here(self) -> str | None:
+        """The station the parent stands at, or None."""
+
+    @abc.abstractmethod
+    def _take(self, action: int) -> tuple[Step, ...]:
+        """Take an allowed move (checked); the plan's steps until the next decision."""
+
+    @property
+    def done(self) -> bool:
+        """Whether the campaign is over."""
+        return self.decision is None
+
+    def here_camera(self) -> str | None:
+        """The camera whose station the parent stands at, or None."""
+        here = self.here()
+        return None if here is None else self.stations[here].camera
+
+    def take_pending(self) -> tuple[Step, ...]:
+        """The plan's steps before the first decision (the reference data), once."""
+        steps, self._pending = self._pending, ()
+        return steps
+
+    def act(self, action: int) -> tuple[Step, ...]:
+        """Take an allowed move; the plan's steps until the next decision.
+
+        Raises:
+            ValueError: the move is not allowed now (see :attr:`mask`).
+            RuntimeError: the campaign is over.
+        """
+        if self.done:
+            raise RuntimeError("the campaign is over: no move to take")
+        if not (0 <= action < self.layout.size and self.mask[action]):
+            raise ValueError(f"{self.layout.describe(action)} is not allowed now")
+        return self._take(action)
+
+
+class CampaignPlanner(EpisodePlanner):
     """The noise-free campaign of a site, advanced by an agent's moves, read from the site's
     memo where the moves were played before and computed (:class:`LiveCampaign`) where not.
 
@@ -453,11 +529,6 @@ class CampaignPlanner:
         return self._memo
 
     @property
-    def plan(self) -> BatchPlan:
-        """The campaign's plan before its first step."""
-        return self._memo.plan
-
-    @property
     def state(self) -> Decision:
         """Where the campaign stands."""
         return self._node.state
@@ -475,11 +546,6 @@ class CampaignPlanner:
         return mask
 
     @property
-    def done(self) -> bool:
-        """Whether the campaign is over."""
-        return self.decision is None
-
-    @property
     def time(self) -> float:
         """The campaign's time so far, s."""
         return self._node.state.time
@@ -493,11 +559,6 @@ class CampaignPlanner:
         """The station the parent stands at, or None."""
         return self._node.state.here
 
-    def here_camera(self) -> str | None:
-        """The camera whose station the parent stands at, or None."""
-        here = self._node.state.here
-        return None if here is None else self.stations[here].camera
-
     @property
     def goal_station(self) -> Station | None:
         """The station the group travels to, during a travel."""
@@ -509,22 +570,7 @@ class CampaignPlanner:
         return self._node.state.distances[station.name]
 
     # -- moves ----------------------------------------------------------------------------
-    def take_pending(self) -> tuple[Step, ...]:
-        """The plan's steps before the first decision (the reference data), once."""
-        steps, self._pending = self._pending, ()
-        return steps
-
-    def act(self, action: int) -> tuple[Step, ...]:
-        """Take an allowed move; the plan's steps until the next decision.
-
-        Raises:
-            ValueError: the move is not allowed now (see :attr:`mask`).
-            RuntimeError: the campaign is over.
-        """
-        if self.done:
-            raise RuntimeError("the campaign is over: no move to take")
-        if not (0 <= action < self.layout.size and self._node.state.mask[action]):
-            raise ValueError(f"{self.layout.describe(action)} is not allowed now")
+    def _take(self, action: int) -> tuple[Step, ...]:
         known = self._node.moves.get(action)
         if known is None:
             live = self._catch_up()

@@ -64,7 +64,7 @@ from twin.campaign.plan.formation import formation, sight_margins
 from twin.campaign.plan.route import RoutePath
 from twin.campaign.strategy import DataStops, Leg, NextLeg, NextVisit, Visit
 from twin.envs.moves import MoveLayout, formation_settings
-from twin.envs.planner import LEG, START, VISIT, Station, site_stations
+from twin.envs.planner import LEG, START, VISIT, EpisodePlanner, Station, site_stations
 from twin.scenario.schema import Scenario
 
 __all__ = ["STD_STEP", "StandPlanner", "StandSite", "clear_sites", "site_for"]
@@ -396,9 +396,9 @@ def rounded_std(parent_covariance: NDArray[np.float64]) -> float:
 
 
 @dataclass
-class StandPlanner:
-    """An episode's campaign on a site's table, advanced by an agent's moves: the same
-    interface as :class:`twin.envs.planner.CampaignPlanner` (see the module).
+class StandPlanner(EpisodePlanner):
+    """An episode's campaign on a site's table, advanced by an agent's moves (see the
+    module and :class:`twin.envs.planner.EpisodePlanner`).
 
     Args:
         scenario: the site. layout: the moves. budget_m: the parent's travel allowed, m.
@@ -438,16 +438,6 @@ class StandPlanner:
         return self.site
 
     @property
-    def plan(self) -> BatchPlan:
-        """The campaign's plan before its first step."""
-        return self.site.plan
-
-    @property
-    def done(self) -> bool:
-        """Whether the campaign is over."""
-        return self.decision is None
-
-    @property
     def mask(self) -> NDArray[np.bool_]:
         """(n,) the moves allowed now (read-only)."""
         if self._mask is None:
@@ -459,11 +449,6 @@ class StandPlanner:
         """The station the parent stands at (the nearest within reach), or None."""
         return self.site.station_at(self._stand)
 
-    def here_camera(self) -> str | None:
-        """The camera whose station the parent stands at, or None."""
-        here = self.here()
-        return None if here is None else self.stations[here].camera
-
     @property
     def goal_station(self) -> Station | None:
         """The station the group travels to, during a travel."""
@@ -474,22 +459,7 @@ class StandPlanner:
         return self.site.distances(self._stand)[station.name]
 
     # -- moves ------------------------------------------------------------------------------
-    def take_pending(self) -> tuple[Step, ...]:
-        """The plan's steps before the first decision (the reference data), once."""
-        steps, self._pending = self._pending, ()
-        return steps
-
-    def act(self, action: int) -> tuple[Step, ...]:
-        """Take an allowed move; the plan's steps until the next decision.
-
-        Raises:
-            ValueError: the move is not allowed now (see :attr:`mask`).
-            RuntimeError: the campaign is over.
-        """
-        if self.done:
-            raise RuntimeError("the campaign is over: no move to take")
-        if not (0 <= action < self.layout.size and self.mask[action]):
-            raise ValueError(f"{self.layout.describe(action)} is not allowed now")
+    def _take(self, action: int) -> tuple[Step, ...]:
         layout = self.layout
         steps: tuple[Step, ...] = ()
         if action == layout.end:

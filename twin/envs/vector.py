@@ -11,10 +11,10 @@ once for every row, and the observations of episodes whose campaigns stand at th
 decision are built in one call.
 
 Starting an episode runs the site's reference data (a hundred steps or so), which would
-cost more than the moves of random play. So each episode has a spare row, which starts its
-next episode ahead (its noise seed is known: it comes from the episode's own generator),
-together with the episodes that have to start at once: an episode that ends takes its
-spare, and most resets cost nothing.
+cost more than the moves of random play. So each episode has spare rows, which start its
+next :data:`SPARES` episodes ahead (their noise seeds are known: they come from the
+episode's own generator), together with the episodes that have to start at once: an
+episode that ends takes its next spare, and most resets cost nothing.
 
 A trial gives the same result alone or in any batch, so every episode is the single
 environment's, bit for bit. Policies that repeat their moves share their steps' runs;
@@ -40,13 +40,16 @@ from twin.batch.rows import execute_rows
 from twin.envs.campaign_env import CpsCampaignEnv
 from twin.envs.knowledge import BatchKnowledge
 
-__all__ = ["CpsCampaignVectorEnv"]
+__all__ = ["SPARES", "CpsCampaignVectorEnv"]
+
+SPARES = 3
+"""Episodes each episode of a vector starts ahead (see the module)."""
 
 
 @dataclass
 class _Pool:
-    """The episodes on one site: rows of one batch (two an episode: the one it plays and
-    its spare).
+    """The episodes on one site: rows of one batch (:data:`SPARES` + 1 an episode: the one
+    it plays and its spares).
 
     Attributes:
         site: the planners' shared table or memo of the site (kept: it names the pool).
@@ -104,11 +107,11 @@ class CpsCampaignVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._pools: dict[int, _Pool] = {}  # by the id of the site's table or memo
-        # Episode k's rows in its site's batch: the one it plays, and a spare that starts its
-        # next episode ahead (with others that start, to share their steps).
+        # Episode k's rows in its site's batch (k, k + N, k + 2N...): the one it plays, and
+        # its spares, started ahead for its next episodes (row, seed), in order, with other
+        # episodes that start (to share their steps).
         self._active = np.arange(num_envs)
-        self._spare = np.arange(num_envs, 2 * num_envs)
-        self._spare_seed: list[int | None] = [None] * num_envs
+        self._spares: list[list[tuple[int, int]]] = [[] for _ in range(num_envs)]
         self._home: dict[int, _Pool] = {}
         self._steps = np.zeros(num_envs, dtype=np.int64)
         self._autoreset = np.zeros(num_envs, dtype=bool)
@@ -141,12 +144,12 @@ class CpsCampaignVectorEnv(VectorEnv):
     def _start(
         self, indices: list[int], seeds: list[int | None], options: dict[str, Any] | None
     ) -> dict[int, _Starts]:
-        """Reset the episodes ``indices``: each takes its spare row where that has started
-        its episode already, or starts its row of its site's batch again (the spares of the
-        site's other episodes start their next episodes with it). Returns, by pool, the
-        rows restarted, whose start steps are yet to run (:meth:`_run`)."""
+        """Reset the episodes ``indices``: each takes its next spare row where that has
+        started its episode already, or starts its row of its site's batch again (then the
+        spares of the site's episodes start their next episodes with it). Returns, by pool,
+        the rows restarted, whose start steps are yet to run (:meth:`_run`)."""
         if options is not None or any(seed is not None for seed in seeds):
-            self._spare_seed = [None] * self.num_envs  # the generators start again
+            self._spares = [[] for _ in range(self.num_envs)]  # the generators start again
         starts: dict[int, _Starts] = {}
         for k, seed in zip(indices, seeds, strict=True):
             env = self.envs[k]
@@ -156,15 +159,15 @@ class CpsCampaignVectorEnv(VectorEnv):
             steps = env._prepare(scenario, trial_seed)
             pool = self._pool_of(k)
             if self._home.get(k) is not pool:
-                self._spare_seed[k] = None  # its spare was started on another site
+                self._spares[k] = []  # its spares were started on another site
             self._home[k] = pool
             pool.members.add(k)
             self._steps[k] = 0
             part = starts.setdefault(id(pool), _Starts(pool))
-            if self._spare_seed[k] == trial_seed:
-                self._active[k], self._spare[k] = self._spare[k], self._active[k]
-                self._spare_seed[k] = None
+            if self._spares[k] and self._spares[k][0][1] == trial_seed:
+                self._active[k] = self._spares[k].pop(0)[0]
             else:
+                self._spares[k] = []
                 part.rows[self._active[k]] = trial_seed
             part.episodes[k] = steps
         self._pools = {key: p for key, p in self._pools.items() if p.members}
@@ -172,11 +175,17 @@ class CpsCampaignVectorEnv(VectorEnv):
             if not part.rows:
                 continue
             for j in sorted(part.pool.members):
-                if self._spare_seed[j] is None:
-                    predicted = self._next_seed(j)
-                    if predicted is not None:
-                        part.rows[self._spare[j]] = predicted
-                        self._spare_seed[j] = predicted
+                queued = self._spares[j]
+                if len(queued) == SPARES:
+                    continue
+                seeds = self._next_seeds(j)
+                used = {int(self._active[j])} | {row for row, _ in queued}
+                free = [j + m * self.num_envs for m in range(SPARES + 1)]
+                free = [row for row in free if row not in used]
+                for seed in seeds[len(queued) :]:
+                    row = free.pop(0)
+                    queued.append((row, seed))
+                    part.rows[row] = seed
             part.pool.batch.restart(list(part.rows), list(part.rows.values()))
         return starts
 
@@ -201,16 +210,16 @@ class CpsCampaignVectorEnv(VectorEnv):
             for k, steps in part.episodes.items():
                 self.envs[k]._attach(part.pool.batch, int(self._active[k]), steps, part.pool.known)
 
-    def _next_seed(self, k: int) -> int | None:
-        """The noise seed of episode ``k``'s next episode if it starts again by itself, on
-        the same site (None where the next site is another)."""
+    def _next_seeds(self, k: int) -> list[int]:
+        """The noise seeds of episode ``k``'s next :data:`SPARES` episodes if it starts
+        again by itself, on the same site (none where the next site is another)."""
         env = self.envs[k]
         if env.default_scenario is None or env.scenario is not env.default_scenario:
-            return None
+            return []
         saved = env._np_random
-        env._np_random = copy.deepcopy(saved)  # the draws of its next reset, not taken
+        env._np_random = copy.deepcopy(saved)  # the draws of its next resets, not taken
         try:
-            return env._draw(None)[1]
+            return [env._draw(None)[1] for _ in range(SPARES)]
         finally:
             env._np_random = saved
 
@@ -221,7 +230,7 @@ class CpsCampaignVectorEnv(VectorEnv):
         site = env.planner.memo
         pool = self._pools.get(id(site))
         if pool is None:
-            batch = BatchRun(env.planner.plan, [0] * (2 * self.num_envs))
+            batch = BatchRun(env.planner.plan, [0] * ((SPARES + 1) * self.num_envs))
             pool = self._pools[id(site)] = _Pool(site, batch, env.knowledge_of(batch))
         return pool
 

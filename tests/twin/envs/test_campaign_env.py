@@ -227,10 +227,15 @@ def test_action_masks_matches_the_info():
     env.close()
 
 
+@pytest.mark.parametrize("planner", ["campaign", "stands"])
 @pytest.mark.parametrize("mode", ["sync", "async"])
-def test_vector_environments(mode):
+def test_vector_environments(mode, planner):
     envs = gymnasium.make_vec(
-        f"twin.envs:{ENV_ID}", num_envs=2, vectorization_mode=mode, scenario=str(SMOKE)
+        f"twin.envs:{ENV_ID}",
+        num_envs=2,
+        vectorization_mode=mode,
+        scenario=str(SMOKE),
+        planner=planner,
     )
     try:
         obs, info = envs.reset(seed=[5, 6])
