@@ -15,8 +15,11 @@ campaign itself: random play reaches new decisions all the time, and the campaig
 every one of them) and ``stands`` (a table of the site, :mod:`twin.envs.stands`, which
 finds each leg the first time it is asked for and reads it back after).
 
-Each configuration plays three windows of S seconds of wall time (default 15) from fresh
-environments and a fresh table: ``cold`` is the first (the table fills), ``warm`` the third.
+Each configuration plays windows of S seconds of wall time (default 15) from fresh
+environments and a fresh table: ``cold`` is the first (the table fills); ``warm`` is
+measured once the table has filled (it grew by less than 1 % over a window; with the
+campaign planner, after one window), and ``from`` says when it began. In other processes
+(``sync`` with its workers' tables, ``async``) the table is not seen: one unmeasured window.
 The ratio is the warm rate against one environment with the same policy and
 planner, measured in the same run; the absolute figures (steps/s on one core, the target
 being 1000 with random moves) are printed with the machine's load average. Resets are
@@ -46,7 +49,7 @@ from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.comparison import play_episode
 from twin.envs.planner import clear_memos
 from twin.envs.policies import policy_named
-from twin.envs.stands import clear_sites
+from twin.envs.stands import _SITES, clear_sites
 from twin.montecarlo import run_montecarlo
 from twin.scenario import load_scenario
 
@@ -67,11 +70,17 @@ def load() -> str:
     return f"{one:.2f} {five:.2f} {fifteen:.2f}"
 
 
+def _table_size() -> int:
+    """Legs the process's site tables hold."""
+    return sum(len(site.legs) for site in _SITES.values())
+
+
 def measure(
     mode: str, n: int, policy: str, seconds: float, planner: str = "campaign"
-) -> tuple[float, float, int]:
-    """(cold steps/s, warm steps/s, steps in those windows) of ``n`` fresh environments of
-    ``mode`` playing ``policy`` for three windows of ``seconds`` each (see the module)."""
+) -> tuple[float, float, float, int]:
+    """(cold steps/s, warm steps/s, when the warm window started (s), steps in those
+    windows) of ``n`` fresh environments of ``mode`` playing ``policy`` (see the
+    module)."""
     clear_memos()
     clear_sites()
     if mode == "batched":
@@ -88,7 +97,12 @@ def measure(
             actors = [policy_named("paper")(e, k) for k, e in enumerate(singles)]
         restarting = np.zeros(n, dtype=bool)
         rates, total = [], 0
-        for window in range(3):  # cold, unmeasured, warm
+        window, played, grown = 0, 0.0, 1.0
+        while True:
+            # Window 0 is cold; then unmeasured windows until the table has filled (it
+            # grew by less than 1 % over the last one, at most 10 of them), then warm.
+            warming = window > 0 and not rates[1:] and grown > 0.01 and window <= 10
+            before = _table_size()
             steps = 0
             start = time.perf_counter()
             while time.perf_counter() - start < seconds:
@@ -108,10 +122,16 @@ def measure(
                     for k in np.flatnonzero(restarting):
                         actors[k] = policy_named("paper")(singles[k], k)
                 restarting = terminated | truncated
-            if window != 1:
+            played += time.perf_counter() - start
+            if window == 0 or not warming:
                 rates.append(steps / (time.perf_counter() - start))
                 total += steps
-        return rates[0], rates[1], total
+            if len(rates) == 2:
+                return rates[0], rates[1], played - seconds, total
+            grown = (_table_size() - before) / max(before, 1)
+            if planner != "stands" or mode == "async":
+                grown = 1.0 if window == 0 else 0.0  # no table seen: one unmeasured window
+            window += 1
     finally:
         envs.close()
 
@@ -163,7 +183,10 @@ def main() -> None:
     args = parser.parse_args()
     console = Console(width=120)
     table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
-    columns = ("planner", "vector", "envs", "policy", "steps", "cold /s", "warm /s", "x one env")
+    columns = (
+        "planner", "vector", "envs", "policy", "steps", "cold /s", "warm /s", "from s",
+        "x one env",
+    )  # fmt: skip
     for name in (*columns, "load"):
         table.add_column(name, justify="right")
     base: dict[tuple[str, str], float] = {}  # one environment of the environment's own vector
@@ -182,11 +205,11 @@ def main() -> None:
                     continue  # the policy reads the environment: it runs in the same process
                 if n == 256 and planner != "stands":
                     continue  # a step a second or so: the campaign runs every decision
-                cold, warm, steps = measure(mode, n, policy, args.seconds, planner)
+                cold, warm, since, steps = measure(mode, n, policy, args.seconds, planner)
                 base.setdefault((planner, policy), warm)
                 ratio = warm / base[(planner, policy)]
                 table.add_row(planner, mode, str(n), policy, str(steps), f"{cold:.1f}",
-                              f"{warm:.1f}", f"{ratio:.2f}", load())  # fmt: skip
+                              f"{warm:.1f}", f"{since:.0f}", f"{ratio:.2f}", load())  # fmt: skip
                 console.print(f"{planner} {mode} {n} {policy}: {cold:.1f} / {warm:.1f} steps/s")
     console.print(table)
     console.print("target: 1000 steps/s with random moves on one core")

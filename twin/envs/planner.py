@@ -23,6 +23,7 @@ from __future__ import annotations
 import abc
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -207,6 +208,29 @@ def site_stations(scenario: Scenario, path: RoutePath) -> dict[str, Station]:
     return stations
 
 
+def visit_mask(
+    mask: NDArray[np.bool_],
+    layout: MoveLayout,
+    order: tuple[str, ...],
+    here: str | None,
+    calibrate: bool,
+    distance: Callable[[str], float],
+    left: float,
+) -> None:
+    """Set ``mask`` (n,) to the moves allowed between travels: ``calibrate`` where the
+    camera of the station ``here`` can be calibrated, a travel to each other station of
+    ``order`` (``go_to``) and back to the start whose route ``distance`` (by the station's
+    name, m) fits in what is ``left`` of the budget (m), and ``end``."""
+    mask[:] = False
+    mask[layout.calibrate] = calibrate
+    for k, name in enumerate(order):
+        if name != here:
+            mask[layout.go_to(k)] = distance(name) <= left
+    if here != START:
+        mask[layout.return_start] = distance(START) <= left
+    mask[layout.end] = True
+
+
 class LiveCampaign:
     """The noise-free campaign of a scenario (a live :class:`PlanSession`), advanced by an
     agent's moves.
@@ -347,17 +371,16 @@ class LiveCampaign:
         self.mask[:] = False
 
     def _visit_mask(self) -> None:
-        layout, mask = self.layout, self.mask
-        mask[:] = False
         here = self.here()
-        mask[layout.calibrate] = here is not None and self.stations[here].camera is not None
-        left = self.budget_m - self.session.travelled
-        for k, name in enumerate(self.order):
-            if name != here:
-                mask[layout.go_to(k)] = self.route_distance(self.stations[name]) <= left
-        if here != START:
-            mask[layout.return_start] = self.route_distance(self.stations[START]) <= left
-        mask[layout.end] = True
+        visit_mask(
+            self.mask,
+            self.layout,
+            self.order,
+            here,
+            here is not None and self.stations[here].camera is not None,
+            lambda name: self.route_distance(self.stations[name]),
+            self.budget_m - self.session.travelled,
+        )
 
     def close(self) -> None:
         """Free the campaign's world."""

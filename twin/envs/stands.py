@@ -64,7 +64,15 @@ from twin.campaign.plan.formation import formation, sight_margins
 from twin.campaign.plan.route import RoutePath
 from twin.campaign.strategy import DataStops, Leg, NextLeg, NextVisit, Visit
 from twin.envs.moves import MoveLayout, formation_settings
-from twin.envs.planner import LEG, START, VISIT, EpisodePlanner, Station, site_stations
+from twin.envs.planner import (
+    LEG,
+    START,
+    VISIT,
+    EpisodePlanner,
+    Station,
+    site_stations,
+    visit_mask,
+)
 from twin.scenario.schema import Scenario
 
 __all__ = ["STD_STEP", "StandPlanner", "StandSite", "clear_sites", "site_for"]
@@ -530,14 +538,15 @@ class StandPlanner(EpisodePlanner):
                 mask[layout.end] = True  # no room for any formation: the campaign ends
         elif self.decision == VISIT:
             here = self.here()
-            mask[layout.calibrate] = here is not None and here in self.site.data
-            left = self.budget_m - self.travelled
-            for k, name in enumerate(self.order):
-                if name != here:
-                    mask[layout.go_to(k)] = self.route_distance(self.stations[name]) <= left
-            if here != START:
-                mask[layout.return_start] = self.route_distance(self.stations[START]) <= left
-            mask[layout.end] = True
+            visit_mask(
+                mask,
+                layout,
+                self.order,
+                here,
+                here is not None and here in self.site.data,
+                self.site.distances(self._stand).__getitem__,
+                self.budget_m - self.travelled,
+            )
         return mask
 
     def close(self) -> None:
