@@ -41,7 +41,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -201,7 +201,9 @@ class StandSite:
             question, answer = session.question, session.suggested()
             before, moved = session.time, where.copy()
             steps = session.answer(answer)
-            driving = self._drive_time(steps, where)
+            driving = self.drive_time(
+                where, ((s.robot, s.believed[:2]) for s in steps if isinstance(s, Drive))
+            )
             if isinstance(question, NextVisit):
                 goal = answer
             elif isinstance(question, NextLeg) and isinstance(answer, Leg):
@@ -213,15 +215,17 @@ class StandSite:
                     self.data[name] = _Data(steps, session.time - before, stops)
         self.leg_overhead = float(np.mean(overheads)) if overheads else 0.0
 
-    def _drive_time(self, steps: tuple[Step, ...], where: dict[str, NDArray[np.float64]]) -> float:
-        """The drives' time by the geometric clock (straight travel at top speed), s;
-        ``where`` follows the robots."""
+    def drive_time(
+        self,
+        where: dict[str, NDArray[np.float64]],
+        drives: Iterable[tuple[str, NDArray[np.float64]]],
+    ) -> float:
+        """The time of drives (robot, (2,) goal) in turn by the geometric clock (straight
+        travel at top speed), s; ``where`` (each robot's position) follows the robots."""
         time = 0.0
-        for step in steps:
-            if isinstance(step, Drive):
-                xy = step.believed[:2]
-                time += float(np.linalg.norm(xy - where[step.robot])) / self.speed[step.robot]
-                where[step.robot] = xy.copy()
+        for robot, xy in drives:
+            time += float(np.linalg.norm(xy - where[robot])) / self.speed[robot]
+            where[robot] = np.array(xy[:2], dtype=float)
         return time
 
     def _station_of(self, visit: Visit) -> str | None:
@@ -478,7 +482,8 @@ class StandPlanner(EpisodePlanner):
             steps = leg.steps
             to = self._travel[min(self._cells(action), len(self._travel)) - 1]
             self.travelled += float(np.linalg.norm(to.xy - self._stand.xy))
-            self.time += self._moved(leg.stops) + self.site.leg_overhead
+            drives = self.site.drive_time(self._where, leg.stops.items())
+            self.time += drives + self.site.leg_overhead
             self._travel = self._travel[self._travel.index(to) + 1 :]
             self._stand = to
             if not self._travel:
@@ -506,14 +511,6 @@ class StandPlanner(EpisodePlanner):
 
     def _cells(self, action: int) -> int:
         return self.site.cells[self.layout.leg_of(action)[1]]
-
-    def _moved(self, stops: dict[str, NDArray[np.float64]]) -> float:
-        """The robots drove to ``stops``: their drives' time, s."""
-        time = 0.0
-        for robot, xy in stops.items():
-            time += float(np.linalg.norm(xy - self._where[robot])) / self.site.speed[robot]
-            self._where[robot] = xy
-        return time
 
     def _allowed(self) -> NDArray[np.bool_]:
         layout = self.layout
