@@ -7,7 +7,6 @@ configurations); ``--resume`` checks it and runs only the trials the table lacks
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import time
@@ -33,6 +32,7 @@ from twin.montecarlo.trial import TrialSpec, run_trial
 from twin.outputs import claim_folder, write_text_atomic
 from twin.report.reading import planned_visits
 from twin.scenario import Scenario
+from twin.scenario.digest import scenario_digest
 from twin.scenario.limits import check_seed
 
 FIDELITIES = ("batch", "geometric", "render")
@@ -53,12 +53,6 @@ class McProgress:
     total: int
     rate: float
     last: TrialSpec | None = None
-
-
-def scenario_digest(scenario: Scenario) -> str:
-    """A digest of everything a scenario defines (not where it was loaded from)."""
-    text = scenario.model_dump_json(exclude={"source"})
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def _settings(
