@@ -1,25 +1,78 @@
-"""One run per output folder: a folder is claimed with a manifest, refused when it holds
-something else, cleared of what the command owns when the user overwrites it; files are
-replaced whole or not at all."""
+"""One run per output folder: a folder is claimed with a manifest and an OS lock, refused
+when it holds something else or another process holds it, cleared of what the command
+owns when the user overwrites it; files are replaced whole or not at all."""
 
 from __future__ import annotations
 
 import json
 import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 from twin.outputs import (
+    LOCK,
     MANIFEST,
     OutputError,
     check_file_target,
+    check_folder,
     claim_folder,
     read_manifest,
     write_text_atomic,
 )
 
 OWNS = ("results.json", "cameras", "frame_*.png")
+ROOT = Path(__file__).resolve().parents[2]
+MC = ("trials.csv",)
+
+HOLDER = """
+import sys
+from twin.outputs import claim_folder
+folder = claim_folder(sys.argv[1], "montecarlo", ("trials.csv",))
+(folder.path / "trials.csv").write_text("rows")
+print("held", flush=True)
+sys.stdin.read()
+"""
+"""A process that claims the folder ``argv[1]`` for a Monte-Carlo run, says so, and holds
+it until its stdin closes (or it is killed)."""
+
+
+def _hold(folder: Path) -> subprocess.Popen:
+    """Start a process that holds ``folder``; returns once it does."""
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, str(folder)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        cwd=ROOT,
+    )
+    line = holder.stdout.readline()
+    assert line == b"held\n", line + holder.stdout.read()
+    return holder
+
+
+@pytest.fixture
+def holders():
+    """Start processes that hold folders (``holders(folder)``); each is stopped by its
+    handle after the test."""
+    started: list[subprocess.Popen] = []
+
+    def start(folder: Path) -> subprocess.Popen:
+        started.append(_hold(folder))
+        return started[-1]
+
+    try:
+        yield start
+    finally:
+        for p in started:
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=10)
+            p.stdin.close()
+            p.stdout.close()
 
 
 def test_a_new_folder_is_claimed_with_a_manifest(tmp_path):
@@ -44,9 +97,10 @@ def test_a_folder_that_holds_a_run_is_refused_and_kept(tmp_path):
 
 
 def test_another_commands_folder_or_a_users_files_are_refused(tmp_path):
-    claim_folder(tmp_path / "mc", "montecarlo", ("trials.csv",))
+    first = claim_folder(tmp_path / "mc", "montecarlo", ("trials.csv",))
     with pytest.raises(OutputError, match=r"holds an unfinished `twin montecarlo` run"):
         claim_folder(tmp_path / "mc", "run", OWNS)
+    assert first.held  # a refused claim of this process leaves the folder to the first
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep me")
     with pytest.raises(OutputError, match=r"is not empty \(notes\.txt\)"):
@@ -60,9 +114,12 @@ def test_overwrite_clears_what_the_command_owns_and_nothing_else(tmp_path):
     (tmp_path / "cameras" / "cam1.json").write_text("old")
     (tmp_path / "frame_00.png").write_bytes(b"old")
     (tmp_path / "notes.txt").write_text("the user's")
-    claim_folder(tmp_path, "run", OWNS, {"seed": 4}, overwrite=True)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([MANIFEST, "notes.txt"])
+    folder = claim_folder(tmp_path, "run", OWNS, {"seed": 4}, overwrite=True)
+    # The lock file is there while the run lasts, and gone with it.
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([LOCK, MANIFEST, "notes.txt"])
     assert read_manifest(tmp_path)["arguments"] == {"seed": 4}
+    folder.finished()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([MANIFEST, "notes.txt"])
 
 
 def test_resume_continues_only_the_commands_own_run(tmp_path):
@@ -135,3 +192,97 @@ def test_a_run_refuses_a_seed_out_of_range_before_writing(tmp_path, seed):
     with pytest.raises(ValueError, match=r"a seed must be a whole number from 0 to 2\^63 - 1"):
         run_scenario(smoke, tmp_path / "run", fidelity="geometric", seed=seed)
     assert not (tmp_path / "run").exists()
+
+
+def _listing(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_a_folder_another_process_holds_is_refused_whatever_the_options(
+    tmp_path, holders, monkeypatch
+):
+    monkeypatch.setattr("twin.outputs.LOCK_PATIENCE", 0.0)  # no look of another to wait out
+    out = tmp_path / "mc"
+    holder = holders(out)
+    before = _listing(out)
+    assert json.loads(before[LOCK])["pid"] == holder.pid
+    in_use = rf"--out {out}: in use by another `twin montecarlo` run \(process {holder.pid} "
+    for options in ({}, {"overwrite": True}, {"resume": True}):
+        with pytest.raises(OutputError, match=in_use):
+            claim_folder(out, "montecarlo", MC, **options)
+        with pytest.raises(OutputError, match=in_use):
+            claim_folder(out, "run", OWNS, overwrite=True)
+        # A command that checks first and claims when its work is done is refused before it.
+        with pytest.raises(OutputError, match=in_use):
+            check_folder(out, "detect", ("detections.json",), **options)
+    assert _listing(out) == before  # nothing written, nothing removed
+    holder.stdin.close()  # the holder ends without finishing its run: the lock goes with it
+    assert holder.wait(timeout=10) == 0
+    claim_folder(out, "montecarlo", MC, resume=True).release()
+    assert not (out / LOCK).exists()
+
+
+@pytest.mark.parametrize("again", ["resume", "overwrite"])
+def test_a_killed_runs_lock_does_not_block_its_folder(tmp_path, holders, again):
+    out = tmp_path / "mc"
+    holder = holders(out)
+    holder.send_signal(signal.SIGKILL)
+    holder.wait(timeout=10)
+    assert json.loads((out / LOCK).read_text())["pid"] == holder.pid  # left behind
+    # Not "something else in the folder", and not a run to refuse: the lock is free.
+    with pytest.raises(OutputError, match=r"holds an unfinished `twin montecarlo` run"):
+        check_folder(out, "montecarlo", MC)
+    folder = claim_folder(out, "montecarlo", MC, **{again: True})
+    assert folder.held
+    assert json.loads((out / LOCK).read_text())["pid"] == os.getpid()
+    assert (out / "trials.csv").exists() == (again == "resume")
+    folder.finished()
+    assert not (out / LOCK).exists()
+    assert not folder.held
+
+
+def test_a_folder_holding_only_a_stale_lock_file_is_empty(tmp_path):
+    (tmp_path / LOCK).write_text('{"pid": 1, "command": "run"}\n')
+    check_folder(tmp_path, "run", OWNS)
+    with claim_folder(tmp_path, "run", OWNS) as folder:
+        assert folder.held
+        assert LOCK in read_manifest(tmp_path)["owns"]
+    assert not folder.held
+    assert sorted(p.name for p in tmp_path.iterdir()) == [MANIFEST]
+
+
+def test_a_run_that_took_the_folder_since_it_was_checked_is_not_overwritten(tmp_path, monkeypatch):
+    import twin.outputs as outputs
+
+    out = tmp_path / "run"
+    make_folder = outputs._make_folder
+
+    def another_run_meanwhile(*args) -> None:
+        # Between the check and the lock: another run claims the folder, writes, finishes.
+        make_folder(*args)
+        monkeypatch.setattr(outputs, "_make_folder", make_folder)
+        claim_folder(out, "run", OWNS, {"seed": 1}).finished()
+        (out / "results.json").write_text("theirs")
+
+    # A command that checks first and claims once its work is done (twin detect).
+    check_folder(out, "detect", ("detections.json",))
+    monkeypatch.setattr(outputs, "_make_folder", another_run_meanwhile)
+    with pytest.raises(OutputError, match=r"holds a finished `twin run` run"):
+        claim_folder(out, "detect", ("detections.json", "results.json"), {"seed": 2})
+    assert (out / "results.json").read_text() == "theirs"
+    assert read_manifest(out)["arguments"] == {"seed": 1}
+    assert sorted(p.name for p in out.iterdir()) == sorted([MANIFEST, "results.json"])
+
+
+def test_a_second_twin_run_into_a_held_folder_exits_2_naming_the_holder(tmp_path, holders, capsys):
+    from twin.cli import main
+
+    out = tmp_path / "run"
+    holder = holders(out)
+    before = _listing(out)
+    smoke = ROOT / "scenarios" / "smoke.toml"
+    args = ["run", str(smoke), "--fidelity", "geometric", "--out", str(out), "--overwrite"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"{out}: in use by another `twin montecarlo` run (process {holder.pid}" in err
+    assert _listing(out) == before
