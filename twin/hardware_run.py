@@ -20,8 +20,8 @@ from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIX
 from twin.campaign.strategies import strategy_for
 from twin.campaign_run import run_campaign
 from twin.check_run import run_check
-from twin.drivers.build import build_rig
-from twin.drivers.rig_file import RigFile, RigFileError, load_rig_file
+from twin.drivers.build import build_rig, check_drivers
+from twin.drivers.rig_file import RigFile, RigFileError, check_fits, load_rig_file
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.record import McapRecorder
@@ -55,12 +55,14 @@ def run_on_rig(
 
     Raises:
         twin.drivers.rig_file.RigFileError: the rig file is bad or lacks a device the
-            scenario needs (nothing is written).
+            scenario needs; ImportError: a driver's optional package is missing;
+            twin.outputs.OutputError: ``out_dir`` cannot be used (nothing is written for
+            any of these).
         twin.drivers.build.DeviceConnectError: a device could not be opened (the log so far
             is kept).
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    rig = rig_file if isinstance(rig_file, RigFile) else load_rig_file(rig_file)
+    rig = _fitting_rig(rig_file, sc)
     chosen = strategy_for(sc, strategy)
     truth = emulated_truth(rig)
     arguments = {
@@ -102,13 +104,14 @@ def check_on_rig(
 
     Raises:
         twin.drivers.rig_file.RigFileError: the rig file is bad or lacks a device the
-            scenario needs; twin.run_cameras.CamerasFolderError, ValueError,
+            scenario needs; ImportError: a driver's optional package is missing;
+            twin.run_cameras.CamerasFolderError, ValueError,
             twin.outputs.OutputError: as :func:`twin.check_run.run_check` (nothing is
             written). twin.drivers.build.DeviceConnectError: a device could not be opened
             (the log so far is kept).
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    rig = rig_file if isinstance(rig_file, RigFile) else load_rig_file(rig_file)
+    rig = _fitting_rig(rig_file, sc)
     chosen = strategy_for(sc, strategy)
     truth = emulated_truth(rig)
     arguments = {
@@ -139,6 +142,21 @@ def check_on_rig(
         progress=progress,
         overwrite=overwrite,
     )
+
+
+def _fitting_rig(rig_file: RigFile | str | Path, sc: Scenario) -> RigFile:
+    """The rig file, read and checked against the scenario (a device for every robot and
+    camera, a bit for every LED) and its drivers loadable, before anything is written or
+    opened.
+
+    Raises:
+        RigFileError: naming the file and each problem. ImportError: a driver's optional
+            package is missing.
+    """
+    rig = rig_file if isinstance(rig_file, RigFile) else load_rig_file(rig_file)
+    check_fits(rig, sc)
+    check_drivers(rig)
+    return rig
 
 
 def _open_devices(

@@ -159,6 +159,19 @@ def _build(
     return DriverRig(rig=rig, identities=identities, connections=connections)
 
 
+def check_drivers(rig_file: RigFile) -> None:
+    """Check, without opening anything, that every driver the rig file names can be loaded.
+
+    Raises:
+        ImportError: a driver's optional package is missing (the message says which extra
+            installs it).
+    """
+    if any(c.driver == "genicam" for c in rig_file.cameras):
+        from twin.drivers.camera import _harvesters
+
+        _harvesters()
+
+
 def close_all(devices: list[Closing]) -> None:
     """Close ``devices``, last opened first, whatever each raises."""
     for d in reversed(devices):

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from calib.io.camera_files import save_camera
 from twin.cli import main
 from twin.emulators.emulation import start_emulation
+from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"
@@ -62,6 +64,38 @@ def test_a_bad_rig_file_is_named_and_nothing_runs(tmp_path, capsys):
     assert "robots[0].model" in out
     assert not (tmp_path / "o").exists()
     assert main(["devices", str(rig)]) == 2
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "expected"),
+    [
+        (('name = "cam1"', 'name = "cam9"'), "cameras", "a [[cameras]] entry named 'cam1'"),
+        (("led_bits = [0, 1, 2, 3]", "led_bits = [0, 1, 2]"), "robots[1].led_bits", "4 bits"),
+    ],
+    ids=["no-camera", "three-led-bits"],
+)
+@pytest.mark.parametrize("command", ["run", "check"])
+def test_a_rig_that_does_not_fit_the_scenario_is_refused_before_anything_is_written(
+    tmp_path, capsys, change, key, expected, command
+):
+    rig = tmp_path / "rig.toml"
+    text = (ROOT / "examples" / "paper_rig.toml").read_text()
+    assert change[0] in text
+    rig.write_text(text.replace(change[0], change[1], 1))
+    out = tmp_path / "o"
+    out.mkdir()  # an empty folder, as a user makes one for the run
+    args = [command, str(SMOKE), "--rig", str(rig), "--out", str(out)]
+    if command == "check":  # the scenario's nominal camera, as a run would have written it
+        (tmp_path / "cameras").mkdir()
+        camera = load_scenario(SMOKE).cameras[0]
+        save_camera(camera.tsai(), tmp_path / "cameras" / "cam1_visit1.json", name=camera.name)
+        args += ["--cameras", str(tmp_path / "cameras")]
+    assert main(args) == 2
+    printed = capsys.readouterr().out
+    assert f"{rig}: 1 problem(s) in the rig file" in printed
+    assert key in printed
+    assert expected in printed
+    assert list(out.iterdir()) == []  # no log, no manifest: the next run is not refused
 
 
 def test_twin_options_are_refused_with_a_rig(tmp_path, capsys):
