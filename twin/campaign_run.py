@@ -5,6 +5,10 @@ a run that does not depend on the backend (the twin's :mod:`twin.runner`, real d
 - ``DIR/log.mcap`` (every reading, as it arrives), ``DIR/results.json``, ``DIR/cameras/``
   (JSON with the camera's covariance, OpenCV YAML, ROS camera_info per calibration),
   ``DIR/figures/`` and ``DIR/report.md``.
+
+A campaign that was aborted (a device lost, CPS unable to go on) leaves the scenario's
+visits it never made in the log as skipped, with the abort's reason
+(:func:`skip_visits_not_made`).
 """
 
 from __future__ import annotations
@@ -16,16 +20,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from calib.io.camera_files import camera_from_dict, save_camera
-from twin.campaign import Campaign, Progress
+from twin.campaign import Campaign, CampaignOutcome, Progress
 from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
+from twin.campaign.journal import Journal
 from twin.campaign.log_results import META, SUMMARY, results_from_log
+from twin.campaign.records import FAILURE
 from twin.campaign.strategy import Strategy
-from twin.hal.recording import recorded
+from twin.hal.recording import Recorder, recorded
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
+from twin.report.reading import planned_visits
 from twin.scenario import Scenario
 
 RigOpener = Callable[[McapRecorder], tuple[Rig, Callable[[], None], dict[str, float]]]
@@ -58,46 +67,84 @@ def run_campaign(
             :func:`run_scenario`.
     """
     folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
-    out = folder.path
-    log_path = out / "log.mcap"
-    t0 = time.perf_counter()
-    with McapRecorder(log_path) as log:
-        log.record(
-            META,
-            {
-                "scenario": sc.name,
-                "scenario_file": sc.source,
-                **meta,
-                "strategy": strategy.name,
-                "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            },
-            0.0,
-        )
-        devices, close, backend_timings = open_rig(log)
-        try:
-            rig = recorded(devices, log)
-            Campaign(rig, sc, log, progress, strategy).run()
-            wall = time.perf_counter() - t0
-            timings = dict(backend_timings)
-            if "observe" in timings:
-                timings["detection"] = max(timings.pop("observe") - timings.get("render", 0.0), 0.0)
-            timings["other"] = max(wall - sum(timings.values()), 0.0)
+    with folder:  # held until the run ends, however it ends
+        out = folder.path
+        log_path = out / "log.mcap"
+        t0 = time.perf_counter()
+        with McapRecorder(log_path) as log:
             log.record(
-                SUMMARY,
-                {"wall_time_s": wall, "timings_s": timings},
-                rig.clock.now(),
+                META,
+                {
+                    "scenario": sc.name,
+                    "scenario_file": sc.source,
+                    **meta,
+                    "strategy": strategy.name,
+                    "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                },
+                0.0,
             )
-        finally:
-            close()
-    messages = read_log(log_path).messages
-    results = results_from_log(messages, sc.campaign.pixel_size_mm)
-    results.update(adjusted_results(messages, **adjustment_settings(sc)))
-    write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
-    write_cameras(results, messages, out / "cameras")
-    if report:
-        write_report(sc, results, out)
-    folder.finished(calibrations=len(results["calibrations"]))
+            devices, close, backend_timings = open_rig(log)
+            try:
+                rig = recorded(devices, log)
+                watch = AbortWatch(log)
+                campaign = Campaign(rig, sc, watch, progress, strategy)
+                outcome = campaign.run()
+                if watch.aborted is not None:
+                    skip_visits_not_made(campaign.journal, outcome, sc, watch.aborted)
+                wall = time.perf_counter() - t0
+                timings = dict(backend_timings)
+                if "observe" in timings:
+                    observe = timings.pop("observe")
+                    timings["detection"] = max(observe - timings.get("render", 0.0), 0.0)
+                timings["other"] = max(wall - sum(timings.values()), 0.0)
+                log.record(
+                    SUMMARY,
+                    {"wall_time_s": wall, "timings_s": timings},
+                    rig.clock.now(),
+                )
+            finally:
+                close()
+        messages = read_log(log_path).messages
+        results = results_from_log(messages, sc.campaign.pixel_size_mm)
+        results.update(adjusted_results(messages, **adjustment_settings(sc)))
+        text = json.dumps(results, indent=2, allow_nan=False) + "\n"
+        write_text_atomic(out / "results.json", text)
+        write_cameras(results, messages, out / "cameras")
+        if report:
+            write_report(sc, results, out)
+        folder.finished(calibrations=len(results["calibrations"]))
     return results
+
+
+class AbortWatch:
+    """A recorder that hands every record on to ``inner`` and keeps the message of the
+    campaign's abort (its last ``campaign_aborted`` failure; None while it has none)."""
+
+    def __init__(self, inner: Recorder) -> None:
+        self.inner = inner
+        self.aborted: str | None = None
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        if topic == FAILURE and getattr(record, "kind", None) == "campaign_aborted":
+            self.aborted = str(getattr(record, "message", ""))
+        self.inner.record(topic, record, timestamp)
+
+
+def skip_visits_not_made(
+    journal: Journal, outcome: CampaignOutcome, sc: Scenario, aborted: str
+) -> list[tuple[str, int]]:
+    """Record as skipped (``campaign_aborted``, the message naming the abort) each of the
+    scenario's visits that an aborted campaign neither calibrated nor skipped; returns
+    them, (camera, visit number), in the scenario's order."""
+    made = {(c.camera, c.visit) for c in outcome.calibrations}
+    made |= {(s.camera, s.visit) for s in outcome.skipped}
+    missed = []
+    for key, station in planned_visits(sc):
+        if key not in made:
+            message = f"the campaign was aborted: {aborted}"
+            journal.skipped(key[0], key[1], np.asarray(station), "campaign_aborted", message)
+            missed.append(key)
+    return missed
 
 
 RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")

@@ -210,6 +210,7 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         est = _array(fixes[-1]["translation"])
         final_error = float(1e3 * np.linalg.norm(est - true_at_fix[-1]))
     failures = Counter(f["kind"] for f in t.get(FAILURE, []))
+    aborts = [f["message"] for f in t.get(FAILURE, []) if f["kind"] == "campaign_aborted"]
     for s in t.get(SKIPPED, []):
         failures[f"visit_{s['reason']}"] += 1
     return {
@@ -243,5 +244,6 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         "distance_travelled_m": fixes[-1]["distance_travelled"] if fixes else 0.0,
         "parent_track": {"estimated": estimated, "true": true_track},
         "failures": dict(sorted(failures.items())),
+        "aborted": aborts[-1] if aborts else None,
         "events": dict(sorted(Counter(e["kind"] for e in t.get(EVENT, [])).items())),
     }

@@ -29,7 +29,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "twin, or with --rig on real devices (or their emulators). Writes "
             "DIR/log.mcap (every reading, as it arrives), DIR/results.json, DIR/cameras/, "
             "DIR/figures/ and DIR/report.md. Exit code 0; 1 when no camera was calibrated; 2 "
-            "for bad input (nothing written) or a device that cannot be opened (the log of "
+            "for bad input (nothing written: a rig file that does not fit the scenario, a "
+            "folder another run is writing) or a device that cannot be opened (the log of "
             "the attempt is kept); 130 when interrupted (Ctrl-C, SIGTERM: every robot is "
             "stopped, the log so far is kept)."
         ),
@@ -189,8 +190,11 @@ def print_results(results: dict, console: Console) -> None:
         )
     console.print(table)
     print_adjustment(results, console)
+    if results.get("aborted"):
+        console.print(f"[red]campaign aborted:[/red] {escape(results['aborted'])}")
     for s in results["skipped_visits"]:
-        console.print(f"skipped {s['camera']} visit {s['visit']}: {s['reason']} ({s['message']})")
+        line = f"skipped {s['camera']} visit {s['visit']}: {s['reason']} ({s['message']})"
+        console.print(line, markup=False)
     if results["failures"]:
         console.print("failures: " + ", ".join(f"{k} {v}" for k, v in results["failures"].items()))
     if results.get("events"):

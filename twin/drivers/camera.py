@@ -10,6 +10,12 @@ triggered by software when it can be, else handled as a live stream.
 
 Timeouts are in rig seconds (:class:`twin.drivers.clock.WallClock`): an emulated world that
 runs faster than real time shortens them by its time scale.
+
+A stream that ends is reopened for ``timeout_s`` before the camera is given up as lost (one
+:class:`DeviceLostError` naming the camera and its source). OpenCV and FFmpeg would print a
+warning or two at every attempt ("Connection refused", "can't be used to capture by name"):
+their own logging is silenced where the driver opens a stream (:func:`quiet_video_logs`),
+unless the user set ``OPENCV_LOG_LEVEL`` or ``OPENCV_FFMPEG_LOGLEVEL`` to see it.
 """
 
 from __future__ import annotations
@@ -54,6 +60,27 @@ DRAIN_TIMEOUT = 1e-3
 
 CLOSE_WAIT = 1.0
 """Wall seconds :meth:`OpenCvCamera.close` waits for the reader beyond a read's timeout."""
+
+FFMPEG_QUIET = "-8"
+"""FFmpeg's log level ``AV_LOG_QUIET``, for ``OPENCV_FFMPEG_LOGLEVEL``."""
+
+
+def quiet_video_logs() -> None:
+    """Silence OpenCV's and FFmpeg's own logging (the warnings a lost or refused stream
+    gives at every read and reopening; the driver reports the loss itself), unless the
+    user asked for it through ``OPENCV_LOG_LEVEL`` or ``OPENCV_FFMPEG_LOGLEVEL``.
+
+    FFmpeg's level is read once, when OpenCV first uses FFmpeg in the process: call this
+    before opening a stream.
+    """
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", FFMPEG_QUIET)
+    if "OPENCV_LOG_LEVEL" not in os.environ:
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
+
+def opencv_link(source: int | str) -> str:
+    """An OpenCV camera's link as :class:`DeviceLostError` names it."""
+    return f"{source} (OpenCV)"
 
 
 def _is_stream(source: int | str) -> bool:
@@ -146,6 +173,8 @@ class OpenCvCamera(Camera):
         self.timeout_s = _check_timeout(timeout_s)
         self.grayscale = bool(grayscale)
         self.live = _is_live(self._source)
+        self.link = opencv_link(self._source)
+        """Where and how the camera is reached, for messages: ``SOURCE (OpenCV)``."""
         wanted = _check_size(name, image_size)
         self._cond = threading.Condition()
         self._frames: collections.deque[tuple[int, float, NDArray]] = collections.deque(
@@ -160,11 +189,11 @@ class OpenCvCamera(Camera):
 
         cap = self._open(wanted)
         if cap is None:
-            raise DeviceLostError(name, f"cannot open camera source {self._source!r}")
+            raise DeviceLostError(name, "cannot open the source", link=self.link)
         ok, first = cap.read()
         if not ok or first is None:
             cap.release()
-            raise DeviceLostError(name, f"camera source {self._source!r} gave no first frame")
+            raise DeviceLostError(name, "the source gave no first frame", link=self.link)
         h, w = first.shape[:2]
         self._size = (int(w), int(h))
         if wanted is not None and wanted != self._size:
@@ -183,7 +212,7 @@ class OpenCvCamera(Camera):
         self._cap: cv2.VideoCapture | None = cap
         if self.live and not self._drain(cap):
             cap.release()
-            raise DeviceLostError(name, f"camera source {self._source!r} stopped after one frame")
+            raise DeviceLostError(name, "the source stopped after one frame", link=self.link)
         if self.live:
             self._thread = threading.Thread(
                 target=self._read_stream, name=f"camera-{name}", daemon=True
@@ -219,7 +248,9 @@ class OpenCvCamera(Camera):
                 or the camera is closed.
         """
         if self._closed:
-            raise DeviceLostError(self._name, "the camera is closed", source=self._source)
+            raise DeviceLostError(
+                self._name, "the camera is closed", link=self.link, source=self._source
+            )
         if not self.live:
             return self._next_file_frame()
         wait = self.clock.wall(self.timeout_s)
@@ -228,7 +259,9 @@ class OpenCvCamera(Camera):
             target = self._count + self.settle_frames + 1
             while self._count < target:
                 if self._lost is not None:
-                    raise DeviceLostError(self._name, self._lost, source=self._source)
+                    raise DeviceLostError(
+                        self._name, self._lost, link=self.link, source=self._source
+                    )
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise NoFrameError(
@@ -259,6 +292,7 @@ class OpenCvCamera(Camera):
     def _open(self, wanted: tuple[int, int] | None = None) -> cv2.VideoCapture | None:
         source = self._source
         if _is_stream(source):
+            quiet_video_logs()
             ms = max(int(1000 * self.clock.wall(self.timeout_s)), 1)
             cap = cv2.VideoCapture(
                 source,
@@ -365,7 +399,7 @@ class OpenCvCamera(Camera):
                     if not self._stop.is_set():
                         with self._cond:
                             self._lost = (
-                                f"the stream {self._source!r} ended and could not be reopened "
+                                "connection lost: the stream ended and could not be reopened "
                                 f"within {self.timeout_s} s"
                             )
                             self._cond.notify_all()
@@ -419,6 +453,8 @@ class GenICamCamera(Camera):
     ) -> None:
         harvester_class = _harvesters()
         self._name = name
+        self.link = f"{producer} (GenICam)"
+        """Where and how the camera is reached, for messages: ``PRODUCER (GenICam)``."""
         self.clock = clock
         self.timeout_s = _check_timeout(timeout_s)
         self._closed = False
@@ -437,7 +473,7 @@ class GenICamCamera(Camera):
             self.close()
             which = f"serial {serial}" if serial is not None else f"index {index}"
             raise DeviceLostError(
-                name, f"cannot open the GenICam camera ({which}) through {producer!r}: {exc}"
+                name, f"cannot open the camera ({which}): {exc}", link=self.link
             ) from exc
 
     @property
@@ -456,7 +492,7 @@ class GenICamCamera(Camera):
             twin.hal.errors.DeviceLostError: the camera is closed or stopped answering.
         """
         if self._closed or self._acquirer is None:
-            raise DeviceLostError(self._name, "the camera is closed")
+            raise DeviceLostError(self._name, "the camera is closed", link=self.link)
         wait = self.clock.wall(self.timeout_s)
         deadline = time.monotonic() + wait
         try:
@@ -484,7 +520,9 @@ class GenICamCamera(Camera):
         except (NoFrameError, DeviceLostError):
             raise
         except Exception as exc:
-            raise DeviceLostError(self._name, f"the GenICam camera failed: {exc}") from exc
+            raise DeviceLostError(
+                self._name, f"connection lost: the camera failed: {exc}", link=self.link
+            ) from exc
         return CameraImage(self._name, stamp, image)
 
     def close(self) -> None:

@@ -140,6 +140,11 @@ class _Link(Connection):
             self._serial.reset()
 
 
+def geocom_link(port: str) -> str:
+    """A GeoCOM instrument's link as :class:`DeviceLostError` names it."""
+    return f"{port} (GeoCOM)"
+
+
 class GeoComTotalStation(TotalStation):
     """A Leica total station with automatic aim (ATR) and compensator, over GeoCOM.
 
@@ -178,6 +183,8 @@ class GeoComTotalStation(TotalStation):
             raise ValueError(f"baud must be a positive integer, got {baud!r}")
         self.name = name
         self.port = port
+        self.link = geocom_link(port)
+        """Where and how the instrument is reached, for messages: ``PORT (GeoCOM)``."""
         self.timeout_s = float(timeout_s)
         self._clock = clock
         self._spec = spec
@@ -193,7 +200,9 @@ class GeoComTotalStation(TotalStation):
             handle = serial.serial_for_url(port, baudrate=baud, timeout=wall, write_timeout=wall)
         except (OSError, ValueError) as exc:
             self._closed = True
-            raise DeviceLostError(name, f"cannot open {port!r}: {exc}", port=port) from exc
+            raise DeviceLostError(
+                name, f"cannot open the port: {exc}", link=geocom_link(port), port=port
+            ) from exc
         self._link = _Link(handle)
         try:
             self._geocom = GeoCom(self._link, attempts=1)
@@ -201,7 +210,8 @@ class GeoComTotalStation(TotalStation):
             self.close()
             raise DeviceLostError(
                 name,
-                f"no GeoCOM instrument answered COM_NullProc on {port!r} within {self.timeout_s} s",
+                f"no GeoCOM instrument answered COM_NullProc within {self.timeout_s} s",
+                link=geocom_link(port),
                 port=port,
                 timeout_s=self.timeout_s,
             ) from exc
@@ -338,9 +348,13 @@ class GeoComTotalStation(TotalStation):
         (None: any); a return code that maps to another is an :class:`InstrumentFaultError`.
         """
         if self._closed:
-            raise DeviceLostError(self.name, f"{request}: the port {self.port!r} is closed")
+            raise DeviceLostError(
+                self.name, f"the port is closed ({request})", link=self.link, port=self.port
+            )
         if self._lost is not None:
-            raise DeviceLostError(self.name, f"{request}: {self._lost}", port=self.port)
+            raise DeviceLostError(
+                self.name, f"{self._lost} ({request})", link=self.link, port=self.port
+            )
         tries = 2 if safe else 1
         for attempt in range(tries):
             if self._flush:
@@ -388,11 +402,15 @@ class GeoComTotalStation(TotalStation):
             self._flush = True
             if self._silent >= LOST_AFTER_TIMEOUTS:
                 self._lost = (
-                    f"no reply to {self._silent} requests in a row on {self.port!r} "
+                    f"connection lost: no reply to {self._silent} requests in a row "
                     f"(each waited {self.timeout_s} s)"
                 )
                 raise DeviceLostError(
-                    self.name, f"{request}: {self._lost}", port=self.port, timeout_s=self.timeout_s
+                    self.name,
+                    f"{self._lost} ({request})",
+                    link=self.link,
+                    port=self.port,
+                    timeout_s=self.timeout_s,
                 ) from error
             code = int(GeoComCode.COM_TIMEDOUT)
             raise InstrumentTimeoutError(
@@ -405,9 +423,13 @@ class GeoComTotalStation(TotalStation):
                 port=self.port,
             ) from error
         if isinstance(error, OSError):
-            self._lost = f"the link {self.port!r} failed: {error}"
+            self._lost = f"connection lost: the link failed: {error}"
             raise DeviceLostError(
-                self.name, f"{request}: {self._lost}", port=self.port, error=repr(error)
+                self.name,
+                f"{self._lost} ({request})",
+                link=self.link,
+                port=self.port,
+                error=repr(error),
             ) from error
         self._silent = 0  # something came back, if only bytes that are not ASCII text
 

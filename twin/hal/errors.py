@@ -15,17 +15,21 @@ from typing import Any
 class DeviceLostError(RuntimeError):
     """A device stopped answering, or its link closed, and could not be reached again.
 
-    The campaign records the failure and ends (what was measured before is kept).
+    The campaign records the failure and ends (what was measured before is kept). The
+    message names the device and, where given, its link: ``total_station on /dev/pts/5
+    (GeoCOM): connection lost (...)``.
 
     Attributes:
         device: the device's name (a robot, a camera, ``total_station``).
-        details: plain values (the port, the time waited).
+        link: where and how the device was reached, ``PORT (PROTOCOL)``; "" if not said.
+        details: plain values (the port, the time waited; the link, where given).
     """
 
-    def __init__(self, device: str, message: str, **details: Any) -> None:
-        super().__init__(f"{device}: {message}")
+    def __init__(self, device: str, message: str, *, link: str = "", **details: Any) -> None:
+        super().__init__(f"{device} on {link}: {message}" if link else f"{device}: {message}")
         self.device = device
-        self.details: dict[str, Any] = details
+        self.link = link
+        self.details: dict[str, Any] = {**details, "link": link} if link else details
 
 
 class NoFrameError(RuntimeError):

@@ -353,8 +353,9 @@ def test_a_dropped_link_is_lost(rig, link):
     deadline = time.monotonic() + 5.0
     while not r.conn.lost and time.monotonic() < deadline:
         time.sleep(0.01)
-    with pytest.raises(DeviceLostError, match="child1"):
+    with pytest.raises(DeviceLostError, match="child1") as lost:
         r.base.odometry()
+    assert str(lost.value).startswith(f"child1 on {r.conn.port} (ARCOS): connection lost")
     with pytest.raises(DeviceLostError):
         r.base.drive_to([0.0, 0.0])
     r.base.close()

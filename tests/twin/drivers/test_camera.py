@@ -3,6 +3,7 @@ video files in a temporary folder; GenICam against a stand-in for ``harvesters``
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -13,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from twin.drivers.camera import GenICamCamera, OpenCvCamera
+from twin.drivers.camera import FFMPEG_QUIET, GenICamCamera, OpenCvCamera, quiet_video_logs
 from twin.drivers.clock import WallClock
 from twin.hal.errors import DeviceLostError, NoFrameError
 
@@ -153,6 +154,7 @@ def test_a_stream_gone_for_good_is_a_lost_device(serve, open_camera) -> None:
             break
     assert lost is not None, "the reader never gave the stream up"
     assert lost.device == "cam1"
+    assert str(lost).startswith(f"cam1 on {server.url} (OpenCV): connection lost: the stream")
     assert "could not be reopened" in str(lost)
 
 
@@ -376,3 +378,24 @@ def test_genicam_without_a_frame_raises_no_frame(monkeypatch) -> None:
             cam.capture()
     finally:
         cam.close()
+
+
+def test_video_logs_are_silenced_unless_the_user_asked_for_them(monkeypatch) -> None:
+    logging = cv2.utils.logging
+    before = logging.getLogLevel()
+    try:
+        logging.setLogLevel(logging.LOG_LEVEL_WARNING)
+        monkeypatch.delenv("OPENCV_LOG_LEVEL", raising=False)
+        monkeypatch.delenv("OPENCV_FFMPEG_LOGLEVEL", raising=False)
+        quiet_video_logs()
+        assert logging.getLogLevel() == logging.LOG_LEVEL_SILENT
+        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == FFMPEG_QUIET
+        # Levels the user set are kept.
+        logging.setLogLevel(logging.LOG_LEVEL_WARNING)
+        monkeypatch.setenv("OPENCV_LOG_LEVEL", "WARNING")
+        monkeypatch.setenv("OPENCV_FFMPEG_LOGLEVEL", "24")
+        quiet_video_logs()
+        assert logging.getLogLevel() == logging.LOG_LEVEL_WARNING
+        assert os.environ["OPENCV_FFMPEG_LOGLEVEL"] == "24"
+    finally:
+        logging.setLogLevel(before)

@@ -454,6 +454,10 @@ def test_a_link_dropped_mid_run(driver: GeoComTotalStation, emulator: GeoComEmul
     with pytest.raises(DeviceLostError, match="failed") as lost:
         driver.measure()
     assert lost.value.details["port"] == emulator.address
+    # The message names the device and its link.
+    named = f"total_station on {emulator.address} (GeoCOM): connection lost: the link failed"
+    assert str(lost.value).startswith(named)
+    assert lost.value.link == f"{emulator.address} (GeoCOM)"
     with pytest.raises(DeviceLostError):
         driver.read_inclination()
 

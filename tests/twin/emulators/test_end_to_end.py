@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -230,6 +231,40 @@ def test_a_killed_runs_log_reads_back_and_the_watchdog_stops_the_robot(emulation
     # What was handed to the system before the kill (every 8 records) reads back.
     assert len(log.messages) >= 8
     assert log.messages[0].topic == "/run/meta"
+
+
+LINK = re.compile(r"(parent|child1|child2|total_station|cam1) on \S+ \((ARCOS|GeoCOM|OpenCV)\)")
+"""How a lost device is named: the device, its port or source, its protocol."""
+
+VIDEO_LOG = re.compile(r"\[(tcp|http|mjpeg)[^\]]* @ 0x|\[ ?(WARN|ERROR|INFO):")
+"""A line of FFmpeg's or OpenCV's own logging."""
+
+
+def test_devices_gone_mid_run_end_it_naming_the_device_without_video_warnings(emulation, tmp_path):
+    rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    run = _start_run(rig_path, tmp_path / "run")
+    try:
+        _wait_for(lambda: _data_stop_drive(emulation) or run.poll() is not None, 60, "a drive")
+        assert run.poll() is None, run.stdout.read().decode()
+        emulation.close()  # every device gone at once, as when the emulator is killed
+        out, _ = run.communicate(timeout=30)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    text = out.decode()
+    assert run.returncode == 1, text
+    (aborted,) = [line for line in text.splitlines() if line.startswith("campaign aborted:")]
+    assert "a device is lost: " in aborted
+    assert LINK.search(aborted), aborted
+    assert "skipped cam1 visit 1: campaign_aborted (the campaign was aborted: " in text
+    assert not [line for line in text.splitlines() if VIDEO_LOG.search(line)], text
+    results = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert LINK.search(results["aborted"])
+    assert [(s["camera"], s["visit"], s["reason"]) for s in results["skipped_visits"]] == [
+        ("cam1", 1, "campaign_aborted")
+    ]
+    assert read_log(tmp_path / "run" / "log.mcap").complete
 
 
 def _drop_child1(em) -> None:

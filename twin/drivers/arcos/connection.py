@@ -127,6 +127,8 @@ class PioneerConnection(Closing):
                 f"{WATCHDOG_S} s), got {pulse_s}"
             )
         self.port = port
+        self.link = f"{port} (ARCOS)"
+        """Where and how the robot is reached, for messages: ``PORT (ARCOS)``."""
         self.clock = clock
         self.timeout_s = float(timeout_s)
         self.name = name
@@ -147,7 +149,9 @@ class PioneerConnection(Closing):
         try:
             self._serial = serial.serial_for_url(port, baudrate=baud, timeout=0)
         except (serial.SerialException, OSError, ValueError) as e:
-            raise DeviceLostError(name, f"cannot open {port}: {e}", port=port) from None
+            raise DeviceLostError(
+                name, f"cannot open the port: {e}", link=self.link, port=port
+            ) from None
         try:
             self._handshake()
             subtype = self.robot_subtype.lower()
@@ -166,7 +170,9 @@ class PioneerConnection(Closing):
             self._write(command_packet(Command.OPEN))
         except (serial.SerialException, OSError) as e:
             self._abandon()
-            raise DeviceLostError(name, f"link on {port} failed: {e}", port=port) from None
+            raise DeviceLostError(
+                name, f"connection lost: the link failed: {e}", link=self.link, port=port
+            ) from None
         except BaseException:
             self._abandon()
             raise
@@ -216,7 +222,8 @@ class PioneerConnection(Closing):
             if now > deadline:
                 raise DeviceLostError(
                     self.name,
-                    f"no ARCOS robot synchronised on {self.port} in {self.timeout_s} s",
+                    f"no ARCOS robot synchronised in {self.timeout_s} s",
+                    link=self.link,
                     port=self.port,
                     step=step,
                 )
@@ -226,7 +233,12 @@ class PioneerConnection(Closing):
             try:
                 data = self._read_bytes(self.clock.wall(POLL))
             except (serial.SerialException, OSError) as e:
-                raise DeviceLostError(self.name, f"link on {self.port} failed: {e}") from None
+                raise DeviceLostError(
+                    self.name,
+                    f"connection lost: the link failed: {e}",
+                    link=self.link,
+                    port=self.port,
+                ) from None
             for payload in self._reader.feed(data):
                 if is_sip(payload):
                     # A session from an earlier client is still open: close it, start over.
@@ -251,7 +263,7 @@ class PioneerConnection(Closing):
                 data = self._read_bytes(self.clock.wall(POLL))
             except (serial.SerialException, OSError, ValueError, TypeError) as e:
                 if not self._stop.is_set():
-                    self._mark_lost(f"link on {self.port} failed: {e}")
+                    self._mark_lost(f"connection lost: the link failed: {e}")
                 return
             if not data:
                 continue
@@ -291,7 +303,7 @@ class PioneerConnection(Closing):
                 self._write(command_packet(Command.PULSE))
             except (serial.SerialException, OSError, ValueError, TypeError) as e:
                 if not self._stop.is_set():
-                    self._mark_lost(f"link on {self.port} failed: {e}")
+                    self._mark_lost(f"connection lost: the link failed: {e}")
                 return
 
     def _mark_lost(self, why: str) -> None:
@@ -314,9 +326,11 @@ class PioneerConnection(Closing):
 
     def _check(self) -> None:
         if self._lost is not None:
-            raise DeviceLostError(self.name, self._lost, port=self.port)
+            raise DeviceLostError(self.name, self._lost, link=self.link, port=self.port)
         if self._closed:
-            raise DeviceLostError(self.name, f"the connection on {self.port} is closed")
+            raise DeviceLostError(
+                self.name, "the connection is closed", link=self.link, port=self.port
+            )
 
     def identify(self) -> dict[str, object]:
         """The robot's name, type and subtype (its SYNC2 answer) and battery voltage, V."""
@@ -344,7 +358,10 @@ class PioneerConnection(Closing):
         if sip is None or self.clock.now() - sip.timestamp > self.timeout_s:
             age = "ever" if sip is None else f"{self.clock.now() - sip.timestamp:.2f} s"
             raise DeviceLostError(
-                self.name, f"no SIP from the robot on {self.port} for {age}", port=self.port
+                self.name,
+                f"connection lost: no SIP from the robot for {age}",
+                link=self.link,
+                port=self.port,
             )
         return sip
 
@@ -388,7 +405,8 @@ class PioneerConnection(Closing):
                 if left <= 0:
                     raise DeviceLostError(
                         self.name,
-                        f"no SIP as expected from the robot on {self.port} in {limit} s",
+                        f"no SIP as expected from the robot in {limit} s",
+                        link=self.link,
                         port=self.port,
                         sips=self._count,
                     )
@@ -407,8 +425,13 @@ class PioneerConnection(Closing):
         try:
             self._write(packet)
         except (serial.SerialException, OSError, ValueError, TypeError) as e:
-            self._mark_lost(f"link on {self.port} failed: {e}")
-            raise DeviceLostError(self.name, f"link on {self.port} failed: {e}") from None
+            self._mark_lost(f"connection lost: the link failed: {e}")
+            raise DeviceLostError(
+                self.name,
+                f"connection lost: the link failed: {e}",
+                link=self.link,
+                port=self.port,
+            ) from None
 
     def write_raw(self, data: bytes) -> None:
         """Put bytes on the line as they are (a diagnostic: what a noisy line does)."""
