@@ -8,8 +8,14 @@
 - :mod:`.engines`: where trials run: a local process pool or Ray.
 - :mod:`.run`: :func:`run_montecarlo`, the whole run.
 - :mod:`.summary`, :mod:`.figures`, :mod:`.report`: what the table says.
+
+Importing this package first chooses the headless OpenGL backend as ``twin run`` does
+(:mod:`twin.sim.gl`, before anything here imports mujoco): the command and every worker
+process (a worker imports this package to run its trials) render at the render fidelity
+without ``MUJOCO_GL`` set.
 """
 
+import twin.sim  # noqa: F401  (first: chooses the OpenGL backend before mujoco is imported)
 from twin.montecarlo.run import McProgress, run_montecarlo
 from twin.montecarlo.seeds import trial_seed
 from twin.montecarlo.sources import ALL, SOURCES, isolate
