@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "DIR/report.md. Exit code 0; 1 when a trial failed (the finished ones are kept) "
             "or no trial calibrated a camera; "
             "2 for bad input (nothing written); 130 when interrupted (Ctrl-C, SIGTERM: "
-            "--resume continues)."
+            "--resume continues, with the options that define the numbers unchanged and "
+            "--trials the same or more)."
         ),
     )
     p.add_argument("scenario", type=Path, help="scenario file (.toml or .yaml)")
@@ -43,7 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--trials",
         type=arguments.positive_int,
         required=True,
-        help="trials per configuration (required)",
+        help="trials per configuration (required; at most what a table of 2,000,000 rows, "
+        "trials x configurations x planned visits, holds; with --resume, as many as the run "
+        "has or more: the run goes on to the new count)",
     )
     p.add_argument(
         "--fidelity",
@@ -113,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if sc is None:
         return 2
     from twin.montecarlo import run_montecarlo
-    from twin.montecarlo.run import OUTPUTS
+    from twin.montecarlo.run import OUTPUTS, check_trials
     from twin.montecarlo.sources import configurations
     from twin.montecarlo.summary import failure_summary
     from twin.montecarlo.trial import TrialFailed
@@ -125,8 +128,13 @@ def run(args: argparse.Namespace) -> int:
         console.print("[red]error:[/red] --chunk-size goes with --fidelity batch")
         return 2
     out = args.out or Path("out") / f"{sc.name}-montecarlo"
-    check_folder(out, "montecarlo", OUTPUTS, overwrite=args.overwrite, resume=args.resume)
     configs = configurations(not args.no_budget)
+    try:
+        check_trials(sc, args.trials, configs)
+    except ValueError as exc:
+        console.print(f"[red]error:[/red] {escape(str(exc))}")
+        return 2
+    check_folder(out, "montecarlo", OUTPUTS, overwrite=args.overwrite, resume=args.resume)
     console.print(
         f"{args.trials} trials x {len(configs)} configurations of [bold]{sc.name}[/bold] at "
         f"the {args.fidelity} fidelity, {args.workers} worker(s), engine {args.engine}, "

@@ -8,9 +8,10 @@ every chunk; a chunk holds trials of one configuration (one noise source, or all
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -81,15 +82,16 @@ def default_chunk_size(trials: int, workers: int) -> int:
 
 
 def chunks(
-    plan: BatchPlan, specs: Sequence[TrialSpec], size: int, adjust: bool = False
+    plan: BatchPlan, specs: Iterable[TrialSpec], size: int, adjust: bool = False
 ) -> Iterator[BatchChunk]:
-    """``specs`` in chunks of at most ``size`` trials of one configuration, in order."""
-    by_config: dict[str, list[TrialSpec]] = {}
-    for spec in specs:
-        by_config.setdefault(spec.config, []).append(spec)
-    for group in by_config.values():
-        for start in range(0, len(group), size):
-            yield BatchChunk(plan, tuple(group[start : start + size]), adjust)
+    """``specs`` in chunks of at most ``size`` consecutive trials of one configuration, in
+    order, taken from ``specs`` as they are needed (an iterator of any length holds at most
+    one chunk in memory)."""
+    if size < 1:
+        raise ValueError(f"a chunk holds at least 1 trial, got {size}")
+    for _, group in itertools.groupby(specs, key=lambda spec: spec.config):
+        while batch := tuple(itertools.islice(group, size)):
+            yield BatchChunk(plan, batch, adjust)
 
 
 def _adjusted_columns(v: AdjustedVisits | None, k: int) -> dict[str, float]:

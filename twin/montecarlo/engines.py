@@ -2,17 +2,20 @@
 or an existing cluster.
 
 An engine maps a function over items and yields the results as they finish (in no fixed
-order); the caller sorts what it keeps. ``close()`` stops what is still running.
+order); the caller sorts what it keeps. Items are taken from their iterable as workers
+free up (a few per worker in flight), so a run of any length holds only those in memory.
+``close()`` stops what is still running.
 """
 
 from __future__ import annotations
 
+import itertools
 import multiprocessing
 import os
 import socket
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any
 
@@ -57,7 +60,7 @@ class LocalEngine:
         self.workers = workers
         self._pool: ProcessPoolExecutor | None = None
 
-    def imap_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Any]:
+    def imap_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
         if self.workers == 1:
             for item in items:
                 yield fn(item)
@@ -153,7 +156,8 @@ class RayEngine:
     """Ray tasks: on a new local Ray instance of ``workers`` CPUs, or on the cluster at
     ``address`` (``auto`` for the one this machine belongs to).
 
-    The cluster's nodes need this package installed (the same version). A Ray instance
+    At most twice as many tasks as the cluster has CPUs are submitted at a time. The
+    cluster's nodes need this package installed (the same version). A Ray instance
     this engine started is shut down by :meth:`close`; one it joined is left running.
     """
 
@@ -177,12 +181,15 @@ class RayEngine:
             ray.init(address=address, **kwargs)
             self._started = True
 
-    def imap_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[Any]:
+    def imap_unordered(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
         remote = self.ray.remote(num_cpus=1, max_retries=2)(fn)
-        refs = [remote.remote(item) for item in items]
+        cpus = int(self.ray.cluster_resources().get("CPU", 1))
+        todo = iter(items)
+        refs = [remote.remote(item) for item in itertools.islice(todo, 2 * max(cpus, 1))]
         try:
             while refs:
                 done, refs = self.ray.wait(refs, num_returns=1)
+                refs.extend(remote.remote(item) for item in itertools.islice(todo, 1))
                 yield self.ray.get(done[0])
         finally:
             for ref in refs:
