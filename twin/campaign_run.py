@@ -16,7 +16,7 @@ from __future__ import annotations
 import datetime
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +35,7 @@ from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
 from twin.report import write_report
 from twin.report.reading import planned_visits
+from twin.run_cameras import camera_identity
 from twin.scenario import Scenario
 
 RigOpener = Callable[[McapRecorder], tuple[Rig, Callable[[], None], dict[str, float]]]
@@ -75,7 +76,7 @@ def run_campaign(
             log.record(
                 META,
                 {
-                    "scenario": sc.name,
+                    **camera_identity(sc),
                     "scenario_file": sc.source,
                     **meta,
                     "strategy": strategy.name,
@@ -109,7 +110,7 @@ def run_campaign(
         results.update(adjusted_results(messages, **adjustment_settings(sc)))
         text = json.dumps(results, indent=2, allow_nan=False) + "\n"
         write_text_atomic(out / "results.json", text)
-        write_cameras(results, messages, out / "cameras")
+        write_cameras(results, messages, out / "cameras", camera_identity(sc))
         if report:
             write_report(sc, results, out)
         folder.finished(calibrations=len(results["calibrations"]))
@@ -151,9 +152,15 @@ RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
 """What a run writes in its folder (and clears there with ``overwrite``)."""
 
 
-def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[Path]:
+def write_cameras(
+    results: dict[str, Any],
+    messages: Any,
+    folder: Path,
+    identity: Mapping[str, str] | None = None,
+) -> list[Path]:
     """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
-    ``.camera_info.yaml`` (ROS) in ``folder``.
+    ``.camera_info.yaml`` (ROS) in ``folder``, the JSON and OpenCV files with ``identity``,
+    the scenario the run was made in (:func:`twin.run_cameras.camera_identity`).
 
     A Tsai camera's JSON file also holds its covariance in W (``covariance``: see
     :mod:`calib.camera_covariance`), propagated from its visit's data as the log holds
@@ -175,6 +182,6 @@ def write_cameras(results: dict[str, Any], messages: Any, folder: Path) -> list[
         cov = covariances.get((m.data["camera"], int(m.data["visit"])))
         for suffix in (".json", ".yaml", ".camera_info.yaml"):
             path = folder / f"{stem}{suffix}"
-            save_camera(camera, path, name=m.data["camera"], covariance=cov)
+            save_camera(camera, path, m.data["camera"], cov, identity)
             written.append(path)
     return written

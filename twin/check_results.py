@@ -20,6 +20,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -119,10 +120,12 @@ def check_results(
     cameras_folder: Path,
     truth: dict[str, dict[str, Any]],
     meta: dict[str, Any],
+    identity: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """``check.json``'s content; writes each moved camera's files into ``cameras_folder``
     (``NAME_check.json``, ``.yaml``, ``.camera_info.yaml``; the JSON file with the
-    re-posed camera's covariance)."""
+    re-posed camera's covariance; the JSON and OpenCV files with ``identity``, the
+    scenario checked in: :func:`twin.run_cameras.camera_identity`)."""
     cameras: dict[str, Any] = {}
     for name, check in outcome.checks.items():
         files: list[str] = []
@@ -130,7 +133,7 @@ def check_results(
         if check.moved and new is not None:
             for suffix in CAMERA_SUFFIXES:
                 path = cameras_folder / f"{name}_check{suffix}"
-                save_camera(new.camera, path, name=name, covariance=new.camera_covariance)
+                save_camera(new.camera, path, name, new.camera_covariance, identity)
                 files.append(f"{cameras_folder.name}/{path.name}")
         true = truth.get(name)
         model = camera_from_dict(true, "truth") if true is not None else None

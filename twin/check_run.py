@@ -30,7 +30,7 @@ from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder
-from twin.run_cameras import latest_cameras
+from twin.run_cameras import camera_identity, latest_cameras
 from twin.scenario import Scenario
 from twin.truth import TRUTH_CAMERA
 
@@ -101,8 +101,9 @@ def run_check(
     sigma = check_min_pixel_sigma(min_pixel_sigma)
     folder = claim_folder(Path(out_dir), "check", CHECK_OUTPUTS, arguments, overwrite=overwrite)
     out = folder.path
+    identity = camera_identity(sc)
     header = {
-        "scenario": sc.name,
+        **identity,
         "scenario_file": sc.source,
         "cameras_dir": str(cameras_dir),
         **meta,
@@ -133,7 +134,7 @@ def run_check(
             )
         finally:
             close()
-    results = check_results(outcome, calibrated, out / "cameras", tap.cameras, header)
+    results = check_results(outcome, calibrated, out / "cameras", tap.cameras, header, identity)
     write_text_atomic(out / "check.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
     folder.finished(
         checked=len(outcome.checks),

@@ -26,6 +26,7 @@ from twin.outputs import claim_folder, write_text_atomic
 from twin.record import read_log
 from twin.record.mcap_log import LogMessage
 from twin.report import write_report
+from twin.run_cameras import IDENTITY_KEYS
 from twin.scenario import Scenario, ScenarioError, load_scenario
 
 MODELS = ("tsai", "opencv")
@@ -103,7 +104,9 @@ def replay_log(
     results["replayed_from"] = str(log)
     results["model"] = model
     write_text_atomic(out / "results.json", json.dumps(results, indent=2, allow_nan=False) + "\n")
-    write_cameras(results, messages, out / "cameras")
+    # The run's scenario as its log records it (a log of an older run: its name alone).
+    identity = {k: str(meta[k]) for k in IDENTITY_KEYS if meta.get(k)}
+    write_cameras(results, messages, out / "cameras", identity)
     if report and sc is not None:
         write_report(sc, results, out)
     folder.finished(calibrations=len(results["calibrations"]))

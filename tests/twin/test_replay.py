@@ -10,8 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calib.io.camera_files import load_camera_identity
 from twin.cli import main
 from twin.replay import replay_log
+from twin.run_cameras import IDENTITY_KEYS as KEYS
 from twin.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,6 +37,10 @@ def test_the_replay_of_a_log_gives_the_runs_results(run, tmp_path):
     assert written["calibrations"] == results["calibrations"]
     names = sorted(p.name for p in (tmp_path / "replay" / "cameras").iterdir())
     assert names == sorted(p.name for p in (out / "cameras").iterdir())
+    # The camera files record the run's scenario, as the log holds it.
+    replayed = load_camera_identity(tmp_path / "replay" / "cameras" / "cam1_visit1.json", KEYS)
+    assert replayed == load_camera_identity(out / "cameras" / "cam1_visit1.json", KEYS)
+    assert set(replayed) == set(KEYS)
 
 
 def test_a_replay_without_report_keeps_the_runs_pixel_size(tmp_path):

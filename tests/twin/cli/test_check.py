@@ -4,6 +4,7 @@ with a named error before anything is written (or the twin loaded)."""
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -11,11 +12,15 @@ from pathlib import Path
 
 import pytest
 
+from calib.io.camera_files import camera_to_dict, load_camera_identity
 from twin.cli import main
+from twin.run_cameras import IDENTITY_KEYS, camera_identity
+from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"
 CALIBRATION = 'visits = [{ camera = "cam1", station = [0.5, 0.0] }]'
+SMOKE_CAMERA = load_scenario(SMOKE).camera("cam1").tsai()
 
 
 def _variant(tmp_path: Path, name: str, extra: str) -> Path:
@@ -58,6 +63,11 @@ def test_an_unmoved_camera_exits_with_0(cameras, tmp_path, capsys):
     assert entry["moved"] is False
     assert results["stops"] == 5
     assert (out / "log.mcap").exists()
+    # The run's camera files record its scenario (run with --seed 3), as the check does.
+    run = camera_identity(load_scenario(SMOKE).model_copy(update={"seed": 3}))
+    assert load_camera_identity(cameras / "cam1_visit1.json", IDENTITY_KEYS) == run
+    assert run["site_digest"] in (cameras / "cam1_visit1.yaml").read_text()
+    assert {k: results[k] for k in IDENTITY_KEYS} == run
 
 
 def test_a_moved_camera_exits_with_1_and_is_reposed(cameras, tmp_path, capsys):
@@ -75,7 +85,8 @@ def test_a_moved_camera_exits_with_1_and_is_reposed(cameras, tmp_path, capsys):
     assert entry["false_alarm_rate"] == 1e-4
     assert entry["shift_mm"] == pytest.approx(20.0, abs=10.0)
     assert entry["reposed"]["model"] == "tsai"
-    assert (out / "cameras" / "cam1_check.json").exists()
+    checked = camera_identity(load_scenario(scenario).model_copy(update={"seed": 3}))
+    assert load_camera_identity(out / "cameras" / "cam1_check.json", IDENTITY_KEYS) == checked
     # The re-posed camera is checked next time in place of the calibration.
     again = tmp_path / "again"
     folder = tmp_path / "folder"
@@ -119,6 +130,36 @@ def test_a_camera_the_scenario_lacks_is_refused(cameras, tmp_path, capsys):
     (folder / "cam7_visit1.json").rename(folder / "notes.json")
     _refused(capsys, ["check", str(SMOKE), "--cameras", str(folder), "--out", str(out)],
              str(folder / "notes.json"), "expected NAME_visitK.json")  # fmt: skip
+    assert not out.exists()
+
+
+GOOD = {**camera_identity(load_scenario(SMOKE)), **camera_to_dict(SMOKE_CAMERA)}
+"""A camera file of the smoke room, as a run writes it."""
+
+
+@pytest.mark.parametrize(
+    ("data", "expected"),
+    [
+        ([GOOD], "expected a JSON object (a camera), got [{"),
+        ({**GOOD, "f_px": "400"}, 'f_px: expected a positive finite number, got "400"'),
+        ({**GOOD, "f_px": None}, "f_px: expected a positive finite number, got null"),
+        ({**GOOD, "f_px": 0.0}, "f_px: expected a positive finite number, got 0.0"),
+        ({**GOOD, "world2cam_t": [math.nan, 0.0, 0.0]}, "world2cam_t: holds NaN or infinity"),
+        ({**GOOD, "position_m": [math.inf, 0.0, 0.0]}, "position_m: holds NaN or infinity"),
+        ({**GOOD, "world2cam_r": [[1, 0, 0], [0, 1, 0], [0, 0, 2]]}, "world2cam_r: not a rotation"),
+        ({**GOOD, "image_size": [640, 480]}, "image_size 640 x 480, but camera 'cam1'"),
+        ({**GOOD, "scenario": "paper_hall"}, "calibrated in scenario 'paper_hall', not in"),
+        ({**GOOD, "scenario_digest": "0" * 16, "site_digest": "1" * 16}, "its site changed"),
+    ],
+)
+def test_a_bad_camera_file_is_refused_before_anything_moves(tmp_path, capsys, data, expected):
+    folder = tmp_path / "cams"
+    folder.mkdir()
+    path = folder / "cam1_visit1.json"
+    path.write_text(json.dumps(data))
+    out = tmp_path / "check"
+    args = ["check", str(SMOKE), "--cameras", str(folder), "--fidelity", "geometric"]
+    _refused(capsys, [*args, "--out", str(out)], f"{path}: ", expected)
     assert not out.exists()
 
 
