@@ -105,7 +105,9 @@ class DataCollection:
             return None
         why = self.travel.drive_clear(child, planned.stop.xy, planned.yaw)
         if why:
-            self.journal.failure("point_unreachable", why, child, camera)
+            x, y = (float(v) for v in planned.stop.xy)
+            where = f"stop ({x:.2f}, {y:.2f}) m"
+            self.journal.failure("point_unreachable", f"{where}: {why}", child, camera, stop=[x, y])
             return None
         obs = self.travel.place_child_turning(child)
         if obs is None:

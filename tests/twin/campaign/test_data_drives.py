@@ -13,6 +13,8 @@ import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Campaign, CampaignAborted
+from twin.campaign.plan.stop import Stop
+from twin.campaign.strategy import StopPlan
 from twin.hal.readings import DriveStatus
 from twin.scenario import load_scenario
 from twin.sim.rig import build_sim_rig
@@ -84,6 +86,32 @@ def test_a_child_with_no_clear_way_does_not_drive(monkeypatch):
     sim.close()
     assert "no way" in why
     assert drives == []
+
+
+class _Failures:
+    def __init__(self) -> None:
+        self.failures: list[object] = []
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        if topic == "/campaign/failure":
+            self.failures.append(record)
+
+
+def test_an_unreachable_stop_is_counted_once_with_where_and_why():
+    sc = load_scenario(SMOKE)
+    sim = build_sim_rig(build_world(sc), "geometric", seed=5)
+    seen = _Failures()
+    campaign = Campaign(sim.rig, sc, seen)
+    pillar = Stop(np.array([6.5, -2.2]), 0.0)
+    pts, _, _ = campaign.collection.collect("cam1", "reference", 0, 4, StopPlan("child1", [pillar]))
+    sim.close()
+    assert len(pts) == 0
+    (failure,) = seen.failures
+    assert failure.kind == "point_unreachable"  # type: ignore[attr-defined]
+    assert failure.message == (  # type: ignore[attr-defined]
+        "stop (6.50, -2.20) m: no way clear of the robots standing and the map"
+    )
+    assert failure.details == {"stop": [6.5, -2.2]}  # type: ignore[attr-defined]
 
 
 def test_a_child_stopped_by_a_collision_is_measured_where_it_stands(monkeypatch):

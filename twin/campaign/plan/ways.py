@@ -8,6 +8,10 @@ every point measured after it is in another frame. So a way keeps each standing 
 its radius, the driving child's and a margin; and the map's walls and obstacles at a
 clearance.
 
+A child stands where its last drive left it, which may be nearer a wall or a robot than a
+way keeps (a drive that ended against the wall): it may leave on a way that takes it no
+nearer than it stands, as it leaves a robot it stopped beside.
+
 Planned on the map and the campaign's estimates of where the robots stand.
 """
 
@@ -42,6 +46,22 @@ def _passes(
     n2 = max(float(d @ d), 1e-12)
     t = np.clip((centres - a) @ d / n2, 0.0, 1.0)
     return np.linalg.norm(a + t[:, None] * d - centres, axis=1)
+
+
+def map_clearance(space: Space, xy: ArrayLike) -> float:
+    """How far a robot centred at (2,) ``xy`` stands from the map, m, as
+    :func:`twin.campaign.plan.clearance.robot_fits` measures it: from the walls, and from
+    each obstacle's footprint grown on every side (a rectangle, not rounded at its corners);
+    0 or less inside a wall or an obstacle."""
+    p = np.asarray(xy, dtype=float).reshape(2)
+    (x0, x1), (y0, y1) = space.x_range, space.y_range
+    room = min(p[0] - x0, x1 - p[0], p[1] - y0, y1 - p[1])
+    for ob in space.obstacles:
+        d = p - np.asarray(ob.center, dtype=float)
+        c, s = np.cos(ob.yaw), np.sin(ob.yaw)
+        along, across = abs(c * d[0] + s * d[1]), abs(-s * d[0] + c * d[1])
+        room = min(room, max(along - 0.5 * ob.size[0], across - 0.5 * ob.size[1]))
+    return float(room)
 
 
 def leg_clear(
@@ -81,6 +101,10 @@ def way_to(
     the one corner (beside the straight line: :data:`CORNER_FRACTIONS`,
     :data:`CORNER_OFFSETS`) of the shortest such way; None where none is clear.
 
+    A start nearer the map than ``clearance`` (:func:`map_clearance`) is left by a first
+    leg that keeps as far as the start stands; the corner and the last leg keep
+    ``clearance``. A start inside a wall or an obstacle has no way.
+
     Args:
         space: the map. start, goal: (2,) m.
         robots: (K, 2) the standing robots' centres, m. keep: (K,) the distance to keep
@@ -89,7 +113,11 @@ def way_to(
     """
     a = np.asarray(start, dtype=float).reshape(2)
     b = np.asarray(goal, dtype=float).reshape(2)
-    if leg_clear(space, a, b, robots, keep, clearance):
+    # A point at exactly a clearance does not fit it (robot_fits): leave just inside.
+    leave = min(clearance, map_clearance(space, a) - 1e-9)
+    if leave <= 0.0:
+        return None
+    if leg_clear(space, a, b, robots, keep, leave):
         return []
     d = b - a
     length = float(np.linalg.norm(d))
@@ -104,7 +132,7 @@ def way_to(
     ]
     corners.sort(key=lambda c: float(np.linalg.norm(c - a) + np.linalg.norm(b - c)))
     for corner in corners:
-        if leg_clear(space, a, corner, robots, keep, clearance) and leg_clear(
+        if leg_clear(space, a, corner, robots, keep, leave) and leg_clear(
             space, corner, b, robots, keep, clearance
         ):
             return [corner]

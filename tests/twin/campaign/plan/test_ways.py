@@ -6,12 +6,14 @@ import itertools
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from twin.campaign.plan.clearance import path_clear
-from twin.campaign.plan.ways import WAY_CLEARANCE, leg_clear, way_to
+from twin.campaign.plan.clearance import path_clear, robot_fits
+from twin.campaign.plan.ways import WAY_CLEARANCE, leg_clear, map_clearance, way_to
 from twin.scenario import load_scenario
+from twin.scenario.schema import Obstacle
 
 ROOT = Path(__file__).resolve().parents[4]
 SPACE = load_scenario(ROOT / "scenarios" / "smoke.toml").space  # x -2..8, y -3..3, a pillar
@@ -60,6 +62,37 @@ def test_a_way_into_the_pillar_is_refused():
     assert way_to(SPACE, [4.0, -2.2], [6.5, -2.2], [], []) is None
 
 
+def test_a_child_that_stopped_against_a_wall_may_drive_away_from_it():
+    # Where a render-fidelity drive ended against the north wall (y = 3): the child's centre
+    # 0.27 m from it, nearer than a way keeps. It leaves on a way no nearer the wall, to the
+    # next stop; a stop in the pillar stays out of reach, and a child in a wall has no way.
+    start = np.array([-1.08, 2.73])
+    assert map_clearance(SPACE, start) == pytest.approx(0.27)
+    assert not path_clear(SPACE, start, start, WAY_CLEARANCE)
+    for goal in ([-1.04, -2.52], [3.94, 0.80], [-1.5, 0.0]):
+        way = way_to(SPACE, start, goal, [[0.0, 0.0]], [KEEP])
+        assert way is not None, goal
+        points = [start, *way, np.asarray(goal)]
+        assert path_clear(SPACE, points[0], points[1], 0.27 - 1e-6)
+        for a, b in itertools.pairwise(points[1:]):
+            assert path_clear(SPACE, a, b, WAY_CLEARANCE)
+    assert way_to(SPACE, start, [-1.08, 2.9], [], []) is None  # nearer the wall still
+    assert way_to(SPACE, start, [6.5, -2.2], [], []) is None
+    assert way_to(SPACE, [-1.0, 3.1], [0.0, 0.0], [], []) is None
+
+
+CRATE = Obstacle(name="crate", center=(2.0, 1.5), size=(1.0, 0.4, 1.0), yaw_deg=30.0)
+WITH_CRATE = SPACE.model_copy(update={"obstacles": (*SPACE.obstacles, CRATE)})
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-2.5, 8.5), st.floats(-3.5, 3.5), st.floats(0.0, 1.0))
+def test_the_clearance_of_a_point_is_what_robot_fits_measures(x, y, clearance):
+    room = map_clearance(WITH_CRATE, [x, y])
+    assume(abs(room - clearance) > 1e-9)  # at the boundary walls and obstacles differ
+    assert bool(robot_fits(WITH_CRATE, [[x, y]], clearance)[0]) == (room > clearance)
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     st.floats(-1.5, 7.5),
@@ -76,7 +109,10 @@ def test_every_way_found_keeps_its_distances(x0, y0, x1, y1, px, py):
         return
     points = [start, *way, goal]
     room = min(KEEP, float(np.linalg.norm(start - parent)))
+    # A start nearer the map than a way keeps is left no nearer than it stands.
+    clearance = min(WAY_CLEARANCE, map_clearance(SPACE, start) - 1e-9)
     for a, b in itertools.pairwise(points):
         assert _nearest(a, b, parent) >= room - 1e-9
-        assert path_clear(SPACE, a, b, WAY_CLEARANCE)
+        assert path_clear(SPACE, a, b, clearance)
         room = min(KEEP, float(np.linalg.norm(b - parent)))
+        clearance = WAY_CLEARANCE
