@@ -13,7 +13,9 @@ rewarded by are that trial's.
 
 Action masks: ``info["action_mask"]`` and :meth:`CpsCampaignEnv.action_masks` (sb3-contrib's
 MaskablePPO convention). A forbidden move runs :meth:`twin.envs.moves.MoveLayout.fallback`
-(reported in ``info["fallback"]``); with ``strict=True`` it raises ``ValueError``.
+(reported in ``info["fallback"]``); with ``strict=True`` it raises ``ValueError``. An action
+outside the action space (a value out of range, a bool, a float) always raises
+``ValueError``.
 
 Rewards (``reward_mode``):
 
@@ -31,6 +33,7 @@ any reward can be computed afterwards.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -58,7 +61,7 @@ from twin.envs.stands import StandPlanner, rounded_std
 from twin.scenario import load_scenario
 from twin.scenario.schema import Scenario
 
-__all__ = ["PLANNERS", "REWARD_MODES", "CpsCampaignEnv"]
+__all__ = ["PLANNERS", "RESET_OPTIONS", "REWARD_MODES", "CpsCampaignEnv", "check_options"]
 
 REWARD_MODES = ("predicted", "truth")
 """The rewards an environment can give (see the module)."""
@@ -92,14 +95,55 @@ the site, for speed (:mod:`twin.envs.stands`, with what it leaves out)."""
 RANDOM = "random"
 """``scenario`` for a random site at each reset."""
 
+RESET_OPTIONS = ("scenario",)
+"""The keys ``reset(options=...)`` knows (see :meth:`CpsCampaignEnv.reset`)."""
+
 
 def _scenario(spec: str | Path | Scenario | None) -> Scenario | None:
-    """A scenario from a path or a scenario; None for random sites."""
+    """A scenario from a path or a scenario; None for random sites.
+
+    Raises:
+        ValueError: ``spec`` is none of these.
+        ScenarioError: the file is not a valid scenario.
+    """
     if spec is None or (isinstance(spec, str) and spec == RANDOM):
         return None
     if isinstance(spec, Scenario):
         return spec
+    if not isinstance(spec, (str, Path)):
+        raise ValueError(
+            f"scenario {spec!r}: expected a scenario file (str or Path), a Scenario, "
+            f"{RANDOM!r} or None, got {type(spec).__name__}"
+        )
     return load_scenario(spec)
+
+
+def check_options(options: object) -> dict[str, Any]:
+    """The options of a reset, checked: None or a mapping whose keys are
+    :data:`RESET_OPTIONS`; its scenario read (a :class:`Scenario`, or None for a random
+    site).
+
+    Raises:
+        ValueError: ``options`` is not a mapping, or has a key it does not know, or its
+            scenario is not one.
+        ScenarioError: its scenario file is not a valid scenario.
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(
+            f"reset options {options!r}: expected a dict of options by name "
+            f"({', '.join(RESET_OPTIONS)}) or None, got {type(options).__name__}"
+        )
+    for key in options:
+        if key not in RESET_OPTIONS:
+            raise ValueError(
+                f"unknown reset option {key!r}; known options: {', '.join(RESET_OPTIONS)}"
+            )
+    checked = dict(options)
+    if "scenario" in checked:
+        checked["scenario"] = _scenario(checked["scenario"])
+    return checked
 
 
 class CpsCampaignEnv(gym.Env):
@@ -194,7 +238,13 @@ class CpsCampaignEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
         """Start a campaign. ``options["scenario"]``: a scenario file, a
-        :class:`Scenario` or ``"random"`` for this episode (default: the environment's)."""
+        :class:`Scenario` or ``"random"`` for this episode (default: the environment's).
+
+        Raises:
+            ValueError: ``options`` is not a dict, or has a key other than
+                :data:`RESET_OPTIONS`, or its scenario is not one.
+        """
+        options = check_options(options)
         super().reset(seed=seed)
         scenario, trial_seed = self._draw(options)
         self._start_episode(scenario, trial_seed)
@@ -204,11 +254,10 @@ class CpsCampaignEnv(gym.Env):
     # episodes at once: draw the site and the noise seed, prepare the campaign, attach the
     # trials that execute it; then per move resolve it, take it, execute it, account for it.
     def _draw(self, options: dict[str, Any] | None) -> tuple[Scenario, int]:
-        """The episode's site and noise seed, from the generator (after seeding it)."""
+        """The episode's site and noise seed, from the generator (after seeding it);
+        ``options`` as :func:`check_options` returns them."""
         options = options or {}
-        scenario = (
-            _scenario(options["scenario"]) if "scenario" in options else self.default_scenario
-        )
+        scenario = options.get("scenario", self.default_scenario)
         if scenario is None:
             scenario = random_site(self.np_random)
         return scenario, int(self.np_random.integers(2**62))
@@ -281,27 +330,39 @@ class CpsCampaignEnv(gym.Env):
     def step(
         self, action: int
     ) -> tuple[dict[str, NDArray[np.float64]], float, bool, bool, dict[str, Any]]:
-        """Take a move (see :mod:`twin.envs.moves`)."""
+        """Take a move (see :mod:`twin.envs.moves`).
+
+        Raises:
+            ValueError: ``action`` is not in the action space (an int in
+                ``0 .. action_space.n - 1``; a forbidden move inside it runs its fallback,
+                or raises if the environment is strict).
+        """
         action, fallback = self._resolve(action)
         reward = self._apply(action)
         return self._outcome(action, reward, fallback)
 
-    def _resolve(self, action: int) -> tuple[int, dict[str, Any] | None]:
+    def _resolve(self, action: object) -> tuple[int, dict[str, Any] | None]:
         """The move to take for ``action`` (its fallback if it is forbidden), and the
-        fallback's report (None when the move is allowed)."""
+        fallback's report (None when the move is allowed).
+
+        Raises:
+            ValueError: ``action`` is not in the action space
+                (:meth:`twin.envs.moves.MoveLayout.check`), or it is forbidden and the
+                environment is strict.
+            RuntimeError: no episode, or the campaign is over.
+        """
         planner = self.planner
         if planner is None:
             raise RuntimeError("call reset() before step()")
         if planner.done:
             raise RuntimeError("the campaign is over: call reset()")
-        action = int(action)
-        valid = 0 <= action < self.layout.size
-        if valid and planner.mask[action]:
+        action = self.layout.check(action)
+        if planner.mask[action]:
             return action, None
-        what = self.layout.describe(action) if valid else f"action {action}"
+        what = self.layout.describe(action)
         if self.strict:
-            raise ValueError(f"{what} is not allowed now (see action_masks())")
-        taken = self.layout.fallback(action if valid else -1, planner.mask)
+            raise ValueError(f"{what} (action {action}) is not allowed now (see action_masks())")
+        taken = self.layout.fallback(action, planner.mask)
         self._fallbacks += 1
         return taken, {
             "requested": action,

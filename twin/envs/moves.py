@@ -20,6 +20,10 @@ Between travels (the group stands at a station):
 
 At a leg with no room for any formation, ``end`` is the one move allowed: the campaign
 aborts, as the paper's strategy does where it finds no formation.
+
+An action is a Python int or a numpy integer (a scalar or a 0-d array) in ``0 .. size - 1``
+(:meth:`MoveLayout.check`); anything else (a bool, a float, a value outside the space) is
+refused with ``ValueError`` wherever an action is taken.
 """
 
 from __future__ import annotations
@@ -145,6 +149,31 @@ class MoveLayout:
         """Number of action values."""
         return self.legs + 3 + self.max_stations
 
+    def check(self, action: object) -> int:
+        """The move value of ``action``, an element of the action space ``Discrete(size)``.
+
+        Args:
+            action: a Python int, a numpy integer scalar or a 0-d integer array.
+
+        Returns:
+            The action as a Python int, in ``0 .. size - 1``.
+
+        Raises:
+            ValueError: ``action`` is of another type (a bool, a float, a longer array...)
+                or outside the space.
+        """
+        if isinstance(action, np.ndarray):
+            integer = action.ndim == 0 and action.dtype.kind in "iu"
+        else:  # a bool is an int to Python, not to the space
+            integer = isinstance(action, (int, np.integer)) and not isinstance(action, bool)
+        if integer and 0 <= int(action) < self.size:  # type: ignore[call-overload]
+            return int(action)  # type: ignore[call-overload]
+        what = "outside" if integer else f"not an integer ({type(action).__name__}), so not in"
+        raise ValueError(
+            f"action {action!r} is {what} the action space Discrete({self.size}): expected an "
+            f"int in 0 .. {self.size - 1}"
+        )
+
     def leg(self, formation: str, step_factor: float) -> int:
         """The value of a leg in ``formation`` with the step factor nearest ``step_factor``."""
         f = self.formations.index(formation)
@@ -159,7 +188,12 @@ class MoveLayout:
         return self.formations[f], self.step_factors[s]
 
     def describe(self, action: int) -> str:
-        """The move's name, e.g. ``leg(in_line, 1.0)`` or ``go_to(2)``."""
+        """The move's name, e.g. ``leg(in_line, 1.0)`` or ``go_to(2)``.
+
+        Raises:
+            ValueError: ``action`` is not in the action space (see :meth:`check`).
+        """
+        action = self.check(action)
         if 0 <= action < self.legs:
             formation, factor = self.leg_of(action)
             return f"leg({formation}, {factor:g})"
@@ -169,9 +203,8 @@ class MoveLayout:
             return f"go_to({action - self.legs - 1})"
         if action == self.return_start:
             return "return_start"
-        if action == self.end:
-            return "end"
-        raise ValueError(f"action {action} is outside 0 .. {self.size - 1}")
+        assert action == self.end
+        return "end"
 
     def fallback(self, action: int, mask: NDArray[np.bool_]) -> int:
         """The allowed move that replaces a forbidden ``action``.
@@ -182,8 +215,10 @@ class MoveLayout:
         ``calibrate``, ``go_to`` in station order, ``return_start`` and ``end``.
 
         Raises:
-            ValueError: nothing is allowed.
+            ValueError: ``action`` is not in the action space (see :meth:`check`), or
+                nothing is allowed.
         """
+        action = self.check(action)
         allowed = np.flatnonzero(mask)
         if not len(allowed):
             raise ValueError("no move is allowed")

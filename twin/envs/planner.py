@@ -299,12 +299,15 @@ class LiveCampaign:
         """Take an allowed move; the plan's steps until the next decision.
 
         Raises:
-            ValueError: the move is not allowed now (see :attr:`mask`).
+            ValueError: ``action`` is not in the action space
+                (:meth:`twin.envs.moves.MoveLayout.check`), or the move is not allowed now
+                (see :attr:`mask`).
             RuntimeError: the campaign is over.
         """
         if self.decision is None:
             raise RuntimeError("the campaign is over: no move to take")
-        if not (0 <= action < self.layout.size and self.mask[action]):
+        action = self.layout.check(action)
+        if not self.mask[action]:
             raise ValueError(f"{self.layout.describe(action)} is not allowed now")
         layout = self.layout
         if self.decision == LEG:
@@ -494,12 +497,15 @@ class EpisodePlanner(abc.ABC):
         """Take an allowed move; the plan's steps until the next decision.
 
         Raises:
-            ValueError: the move is not allowed now (see :attr:`mask`).
+            ValueError: ``action`` is not in the action space
+                (:meth:`twin.envs.moves.MoveLayout.check`), or the move is not allowed now
+                (see :attr:`mask`).
             RuntimeError: the campaign is over.
         """
         if self.done:
             raise RuntimeError("the campaign is over: no move to take")
-        if not (0 <= action < self.layout.size and self.mask[action]):
+        action = self.layout.check(action)
+        if not self.mask[action]:
             raise ValueError(f"{self.layout.describe(action)} is not allowed now")
         return self._take(action)
 

@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from twin.batch.execute import BatchRun
 from twin.batch.plan import Step
 from twin.batch.rows import execute_rows
-from twin.envs.campaign_env import CpsCampaignEnv
+from twin.envs.campaign_env import CpsCampaignEnv, check_options
 from twin.envs.knowledge import BatchKnowledge
 
 __all__ = ["SPARES", "CpsCampaignVectorEnv"]
@@ -124,7 +124,14 @@ class CpsCampaignVectorEnv(VectorEnv):
         options: dict[str, Any] | None = None,
     ) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
         """Start every episode; ``seed`` an int (episode k gets ``seed + k``), a list, or
-        None; ``options`` as :meth:`CpsCampaignEnv.reset`'s, for every episode."""
+        None; ``options`` as :meth:`CpsCampaignEnv.reset`'s, for every episode.
+
+        Raises:
+            ValueError: bad seeds, or options as :meth:`CpsCampaignEnv.reset` refuses them
+                (nothing is reset).
+        """
+        if options is not None:
+            options = check_options(options)
         if seed is None:
             seeds: list[int | None] = [None] * self.num_envs
         elif isinstance(seed, int):
@@ -250,8 +257,14 @@ class CpsCampaignVectorEnv(VectorEnv):
         dict[str, Any],
     ]:
         """Take each episode's move (an episode that ended at the last step is reset
-        instead, its action ignored)."""
-        actions = np.asarray(actions).reshape(self.num_envs)
+        instead, its action ignored).
+
+        Raises:
+            ValueError: ``actions`` is not ``num_envs`` actions, or one is not in the single
+                action space (:meth:`twin.envs.moves.MoveLayout.check`, every episode's
+                action, ignored or not), or (strict) one is forbidden; nothing changes.
+        """
+        actions = self._actions(actions)
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
@@ -260,9 +273,7 @@ class CpsCampaignVectorEnv(VectorEnv):
         # Every move is resolved before anything changes: with strict=True a forbidden move
         # raises and leaves the vector as it was.
         resolved = {
-            k: self.envs[k]._resolve(int(actions[k]))
-            for k in range(self.num_envs)
-            if k not in resetting
+            k: self.envs[k]._resolve(actions[k]) for k in range(self.num_envs) if k not in resetting
         }
         starts = self._start(resetting, [None] * len(resetting), None) if resetting else {}
         taken: dict[int, tuple[int, tuple[Step, ...]]] = {}
@@ -287,6 +298,31 @@ class CpsCampaignVectorEnv(VectorEnv):
             infos = self._add_info(infos, info, k)
         self._autoreset = terminated | truncated
         return self._observations(), rewards, terminated, truncated, infos
+
+    def _actions(self, actions: object) -> list[int]:
+        """The episodes' actions, each checked against the single action space.
+
+        Raises:
+            ValueError: not ``num_envs`` actions, or one is not in the space.
+        """
+        if isinstance(actions, np.ndarray) and actions.ndim:
+            items = list(actions.reshape(-1))
+        elif isinstance(actions, (list, tuple)):
+            items = list(actions)
+        else:
+            items = []
+        if len(items) != self.num_envs:
+            raise ValueError(
+                f"actions {actions!r}: expected {self.num_envs} actions (one an episode, each "
+                f"in Discrete({self.single_action_space.n}))"
+            )
+        checked = []
+        for k, action in enumerate(items):
+            try:
+                checked.append(self.envs[k].layout.check(action))
+            except ValueError as exc:
+                raise ValueError(f"episode {k}: {exc}") from None
+        return checked
 
     # -- what comes back -----------------------------------------------------------------------
     def _observations(self) -> dict[str, NDArray[np.float64]]:

@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.wrappers import FlattenObservation
+from hypothesis import HealthCheck, given, settings
 
 import twin.sim  # noqa: F401  (headless rendering)
+from tests.twin.envs.test_sites_and_moves import ACTIONS
 from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.policies import POLICIES, policy_named
 from twin.scenario import load_scenario
@@ -206,16 +208,103 @@ def test_a_forbidden_move_runs_its_fallback_and_strict_raises():
     assert after["fallback"]["taken"] == expected
     assert after["move"] == layout.describe(expected)
     assert after["fallbacks"] == 1
-    # Outside the action space too.
-    if not env.planner.done:
-        _, _, _, _, after = env.step(layout.size + 5)
-        assert after["fallback"]["requested"] == layout.size + 5
     strict = CpsCampaignEnv(CORRIDOR, strict=True)
     _, info = strict.reset(seed=3)
     with pytest.raises(ValueError, match="not allowed now"):
         strict.step(int(np.flatnonzero(~info["action_mask"])[0]))
     env.close()
     strict.close()
+
+
+# Outside the action space, strict or not: refused, naming the action and the space, and the
+# episode goes on as if it had not been asked.
+NOT_ACTIONS = (
+    32,
+    27,
+    -1,
+    0.5,
+    13.7,
+    3.0,
+    True,
+    False,
+    np.bool_(True),
+    np.float64(2.0),
+    np.array([1]),
+    np.array(2.0),
+    "3",
+    None,
+    2**64,
+)
+
+
+_STEPPED: dict = {}  # one environment for every example (a fresh one costs a site's table)
+
+
+@pytest.mark.parametrize("strict", [False, True])
+def test_an_action_outside_the_space_is_refused(strict):
+    env = CpsCampaignEnv(SMOKE, strict=strict)
+    _, info = env.reset(seed=4)
+    size = env.action_space.n
+    before, steps = env.action_masks(), env.plan.steps
+    for action in NOT_ACTIONS:
+        with pytest.raises(ValueError, match="action space") as raised:
+            env.step(action)
+        message = str(raised.value)
+        assert f"action {action!r} is" in message
+        assert f"action space Discrete({size})" in message
+    # The planner the environment plays refuses them too.
+    for action in (0.5, True, size):
+        with pytest.raises(ValueError, match=rf"action space Discrete\({size}\)"):
+            env.planner.act(action)
+    assert np.array_equal(env.action_masks(), before)
+    assert env.plan.steps == steps
+    assert info["fallbacks"] == env._info()["fallbacks"] == 0
+    # Integers of numpy's kinds are actions: the same move as the Python int.
+    allowed = int(np.flatnonzero(before)[0])
+    for action in (np.int64(allowed), np.array(allowed), np.uint8(allowed)):
+        twin = CpsCampaignEnv(SMOKE, strict=strict)
+        twin.reset(seed=4)
+        _, _, _, _, after = twin.step(action)
+        assert after["move"] == env.layout.describe(allowed)
+        assert "fallback" not in after
+        twin.close()
+    env.close()
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(ACTIONS)
+def test_a_step_takes_an_action_of_the_space_or_refuses_it(labelled):
+    action, index = labelled
+    env = _STEPPED.setdefault("env", CpsCampaignEnv(SMOKE))
+    _, info = env.reset(seed=4)
+    mask = info["action_mask"]
+    if index is None:
+        with pytest.raises(ValueError, match=r"the action space Discrete\(\d+\)"):
+            env.step(action)
+        assert env.plan.steps == _STEPPED.setdefault("steps", env.plan.steps)
+        return
+    _, _, _, _, after = env.step(action)
+    # A move inside the space that is forbidden now falls back, as documented.
+    taken = index if mask[index] else env.layout.fallback(index, mask)
+    assert after["move"] == env.layout.describe(taken)
+    assert ("fallback" in after) == (not mask[index])
+    if not mask[index]:
+        assert after["fallback"]["requested"] == index
+
+
+def test_reset_options_are_named_when_wrong():
+    env = CpsCampaignEnv(SMOKE)
+    with pytest.raises(ValueError, match=r"unknown reset option 'bogus'; known options: scenario"):
+        env.reset(seed=0, options={"bogus": 1})
+    with pytest.raises(ValueError, match=r"reset options \[1, 2\]: expected a dict .* got list"):
+        env.reset(seed=0, options=[1, 2])
+    with pytest.raises(ValueError, match=r"scenario 7: expected a scenario file"):
+        env.reset(seed=0, options={"scenario": 7})
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)  # nothing was started
+    env.reset(seed=0, options={})
+    assert env.scenario.name == "smoke"
+    env.close()
 
 
 def test_action_masks_matches_the_info():

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from decimal import Decimal
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -94,6 +97,10 @@ def test_every_value_has_one_name():
 def test_the_fallback_is_an_allowed_move(mask, action):
     layout = MoveLayout()
     mask = np.array(mask)
+    if not 0 <= action < layout.size:
+        with pytest.raises(ValueError, match=f"action {action} is outside the action space"):
+            layout.fallback(action, mask)
+        return
     if not mask.any():
         with pytest.raises(ValueError, match="no move is allowed"):
             layout.fallback(action, mask)
@@ -106,6 +113,71 @@ def test_the_fallback_is_an_allowed_move(mask, action):
         n = len(layout.step_factors)
         if mask[(action // n) * n : (action // n + 1) * n].any():
             assert taken // n == action // n
+
+
+SIZE = MoveLayout().size
+INTEGER_TYPES = (int, np.int8, np.int16, np.int32, np.int64, np.intp)
+UNSIGNED_TYPES = (np.uint8, np.uint16, np.uint32, np.uint64)
+
+
+def _in_range(v: int) -> int | None:
+    return v if 0 <= v < SIZE else None
+
+
+# (action, the move it is, or None where it is not in the space)
+ACTIONS = st.one_of(
+    # Integers of every kind: in the space exactly when in range.
+    st.tuples(st.integers(-2 * SIZE, 2 * SIZE), st.sampled_from(INTEGER_TYPES)).map(
+        lambda vt: (vt[1](vt[0]), _in_range(vt[0]))
+    ),
+    st.tuples(st.integers(0, 2 * SIZE), st.sampled_from(UNSIGNED_TYPES)).map(
+        lambda vt: (vt[1](vt[0]), _in_range(vt[0]))
+    ),
+    st.integers(-(2**70), 2**70).map(lambda v: (v, _in_range(v))),
+    st.tuples(st.integers(-2 * SIZE, 2 * SIZE), st.sampled_from(INTEGER_TYPES[1:])).map(
+        lambda vt: (np.array(vt[0], dtype=vt[1]), _in_range(vt[0]))
+    ),
+    # Never: bools, floats (whole or not), longer arrays, other types.
+    st.booleans().map(lambda b: (b, None)),
+    st.booleans().map(lambda b: (np.bool_(b), None)),
+    st.booleans().map(lambda b: (np.array(b), None)),
+    st.floats().map(lambda f: (f, None)),
+    st.integers(0, SIZE - 1).map(lambda v: (float(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (np.float64(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (np.float32(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (np.array(float(v)), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (np.array([v]), None)),
+    st.integers(0, SIZE - 1).map(lambda v: ([v], None)),
+    st.integers(0, SIZE - 1).map(lambda v: (str(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (complex(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (Fraction(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (Decimal(v), None)),
+    st.integers(0, SIZE - 1).map(lambda v: (np.array(v, dtype=object), None)),
+    st.just((None, None)),
+)
+
+
+@settings(max_examples=400, deadline=None)
+@given(ACTIONS)
+def test_an_action_is_an_integer_of_the_space(labelled):
+    action, index = labelled
+    layout = MoveLayout()
+    if index is not None:
+        value = layout.check(action)
+        assert value == index
+        assert type(value) is int
+        return
+    with pytest.raises(ValueError, match="action space") as raised:
+        layout.check(action)
+    message = str(raised.value)
+    assert f"action {action!r} is" in message
+    assert f"the action space Discrete({SIZE})" in message
+    assert f"expected an int in 0 .. {SIZE - 1}" in message
+    # Every entry point that takes a move refuses it the same way.
+    with pytest.raises(ValueError, match="action space"):
+        layout.describe(action)
+    with pytest.raises(ValueError, match="action space"):
+        layout.fallback(action, np.ones(SIZE, dtype=bool))
 
 
 def test_the_policy_names_are_the_policies():

@@ -3,6 +3,7 @@ every episode is the single environment's, bit for bit."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import gymnasium
@@ -102,4 +103,39 @@ def test_a_strict_refusal_leaves_the_vector_as_it_was():
         assert _equal(_row(a[0], k), _row(b[0], k))
     assert np.array_equal(a[1], b[1])
     strict.close()
+    plain.close()
+
+
+def test_actions_outside_the_space_and_bad_options_leave_the_vector_as_it_was():
+    vector = CpsCampaignVectorEnv(2, scenario=SMOKE)
+    plain = CpsCampaignVectorEnv(2, scenario=SMOKE)
+    _, info = vector.reset(seed=5)
+    plain.reset(seed=5)
+    n = vector.single_action_space.n
+    allowed = np.array([np.flatnonzero(m)[0] for m in info["action_mask"]])
+    bad = {
+        "32": [int(allowed[0]), 32],
+        "np.int64(-1)": np.array([-1, allowed[1]]),
+        "0.5": [int(allowed[0]), 0.5],
+        "True": [True, int(allowed[1])],
+        "np.float64(2.0)": np.array([2.0, 1.0]),
+    }
+    for shown, actions in bad.items():
+        pattern = rf"episode \d: action {re.escape(shown)} is .*Discrete\({n}\)"
+        with pytest.raises(ValueError, match=pattern):
+            vector.step(actions)
+    for actions in ([int(allowed[0])], allowed[0], np.array([allowed, allowed])):
+        with pytest.raises(ValueError, match=rf"expected 2 actions .*Discrete\({n}\)"):
+            vector.step(actions)
+    with pytest.raises(ValueError, match="unknown reset option 'bogus'; known options: scenario"):
+        vector.reset(seed=5, options={"bogus": 1})
+    with pytest.raises(ValueError, match=r"reset options \[1, 2\]: expected a dict"):
+        vector.reset(seed=5, options=[1, 2])
+    # Integers of numpy's kinds and Python's are actions.
+    a = vector.step([np.int32(allowed[0]), int(allowed[1])])
+    b = plain.step(allowed)
+    for k in range(2):
+        assert _equal(_row(a[0], k), _row(b[0], k))
+    assert np.array_equal(a[1], b[1])
+    vector.close()
     plain.close()
