@@ -40,6 +40,8 @@ from twin.planning.frames import MapPose
 from twin.planning.route import NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
+from twin.scenario.errors import ScenarioError
+from twin.scenario.geometry import inside_obstacles
 from twin.scenario.loader import validate_model
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
@@ -121,7 +123,9 @@ def read_cameras(path: str | Path) -> list[dict[str, Any]]:
     z is the height above the floor, m).
 
     Raises:
-        MapError: the file cannot be read, or a camera is not a table of known keys.
+        MapError: the file cannot be read, or a camera is not a table of known keys, or
+            one of its values is not a scenario camera's (a NaN focal length, say); the
+            message names the camera (its index and name) and the key.
     """
     path = Path(path)
     try:
@@ -144,8 +148,30 @@ def read_cameras(path: str | Path) -> list[dict[str, Any]]:
         for key in ("name", "position", "view_direction", "f", "cx", "cy", "image_size"):
             if key not in cam:
                 raise MapError(path, f"{where}: the key {key!r} is missing")
+        position = cam["position"]
+        if not (
+            isinstance(position, list)
+            and len(position) == 3
+            and all(_finite_number(v) for v in position)
+        ):
+            raise MapError(
+                path,
+                f"{where}: position: expected 3 finite numbers (x, y in the map's frame and "
+                f"the height above the floor, m), got {position!r}",
+            )
+        try:
+            # The position is the map's (any size: the map's own coordinates); the rest is
+            # checked as a scenario camera's.
+            validate_model(CameraConfig, {**cam, "position": [0.0, 0.0, position[2]]}, path)
+        except ScenarioError as exc:
+            problems = "; ".join(str(issue) for issue in exc.issues)
+            raise MapError(path, f"{where}: {problems}") from None
         out.append(dict(cam))
     return out
+
+
+def _finite_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def plan_site(
@@ -224,6 +250,9 @@ def plan_site(
         pose = MapPose(x, y, yaw)
         stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution)
     boxed = boxed_space(floor, pose, resolution)
+    if start is None:  # the boxes laid in the chosen W: checked again
+        space = validate_model(Space, _space_dict(boxed, floor_z))
+        _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
     graph = _route_graph(floor, pose, reach_w, stations)
@@ -300,6 +329,7 @@ def _stations(
     reach (``station_free[1]``)."""
     boxed = boxed_space(floor, pose, resolution)
     space = validate_model(Space, _space_dict(boxed, floor_z))
+    _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
     ts = Noise().total_station
@@ -324,6 +354,54 @@ def _stations(
                 if k == len(wheres) - 1:
                     raise MapError(floor.source, str(exc)) from None
     return out
+
+
+def _check_cameras_clear(
+    floor: FloorMap,
+    cameras: Sequence[Mapping[str, Any]],
+    pose: MapPose,
+    boxed: BoxedSpace,
+    space: Space,
+    floor_z: float,
+) -> None:
+    """Refuse a camera that stands inside one of the boxes the map's blocked floor is laid
+    as, below its top (the scenario would refuse it), in the terms of the cameras file:
+    the camera's name, where it stands in the map's frame and what of the map it stands in.
+
+    Raises:
+        MapError: naming the camera and the obstacle, map frame.
+    """
+    obstacles = space.obstacles
+    if not obstacles:
+        return
+    tops = np.array([floor_z + ob.size[2] for ob in obstacles])
+    for cam in cameras:
+        p = np.asarray(cam["position"], dtype=float)
+        inside = inside_obstacles(obstacles, [pose.map2world(p[:2])])[:, 0]
+        hit = np.flatnonzero(inside & (floor_z + p[2] < tops))
+        if not hit.size:
+            continue
+        mapped = [ob for ob in floor.obstacles if ob.footprint.covers(Point(p[:2]))]
+        if mapped:
+            ob = mapped[0]
+            x0, y0, x1, y1 = ob.footprint.bounds
+            high = "up to the ceiling" if math.isinf(ob.height) else f"{ob.height:.2f} m high"
+            what = f"the map's obstacle {ob.name!r}"
+        else:  # a wall or floor the map does not show free, as its box laid on the grid
+            box = boxed.boxes[hit[0]]
+            half = 0.5 * np.asarray(box.size)
+            square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+            corners = pose.world2map(np.asarray(box.center) + half * square)
+            (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
+            high = f"{box.height:.2f} m high"
+            what = "the map's blocked floor"
+        raise MapError(
+            floor.source,
+            f"camera {cam['name']!r} at ({p[0]:.2f}, {p[1]:.2f}), {p[2]:.2f} m above the "
+            f"floor, stands inside {what} (x {x0:.2f} to {x1:.2f}, y {y0:.2f} to {y1:.2f}, "
+            f"{high}; the map's frame, m); expected a camera over free floor or above what "
+            "stands there",
+        )
 
 
 def _first_two(

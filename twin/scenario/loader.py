@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 import types
 import typing
@@ -49,6 +50,15 @@ _RANGE_ERRORS = (
     "less_than_equal",
     "finite_number",
 )
+
+# What is wrong with a number out of its range, in place of pydantic's "Input should be...".
+_RANGE_PROBLEMS = {
+    "greater_than": "too small",
+    "greater_than_equal": "too small",
+    "less_than": "too large",
+    "less_than_equal": "too large",
+    "finite_number": "not a finite number",
+}
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -183,7 +193,7 @@ def _unwrap(annotation: Any) -> tuple[Any, list[Any]]:
             annotation = args[0]
             for extra in args[1:]:
                 constraints += extra.metadata if isinstance(extra, FieldInfo) else [extra]
-        elif origin in (typing.Union, types.UnionType) and len(args) == 2 and None in args:
+        elif origin in (typing.Union, types.UnionType) and len(args) == 2 and type(None) in args:
             annotation = next(a for a in args if a is not type(None))
         else:
             return annotation, constraints
@@ -224,21 +234,45 @@ def _number(x: float) -> str:
 
 
 def _range(annotation: Any, constraints: list[Any]) -> str | None:
-    """The accepted range of a number, as "a number in [lo, hi]", if it has one."""
+    """The accepted range of a number, if it has one: "a number in [lo, hi]" (an open end
+    in round brackets) where it has both ends, else in words ("a number above 0")."""
     lo = hi = None
     for c in constraints:
         if isinstance(c, annotated_types.Ge):
-            lo = f"[{_number(c.ge)}"
+            lo = ("ge", c.ge)
         elif isinstance(c, annotated_types.Gt):
-            lo = f"({_number(c.gt)}"
+            lo = ("gt", c.gt)
         elif isinstance(c, annotated_types.Le):
-            hi = f"{_number(c.le)}]"
+            hi = ("le", c.le)
         elif isinstance(c, annotated_types.Lt):
-            hi = f"{_number(c.lt)})"
-    if lo is None and hi is None:
-        return None
+            hi = ("lt", c.lt)
     what = "an integer" if annotation is int else "a number"
-    return f"{what} in {lo or '(-inf'}, {hi or 'inf)'}"
+    if lo is not None and hi is not None:
+        left = "[" if lo[0] == "ge" else "("
+        right = "]" if hi[0] == "le" else ")"
+        return f"{what} in {left}{_number(lo[1])}, {_number(hi[1])}{right}"
+    bound = lo or hi
+    return None if bound is None else _bound(what, *bound)
+
+
+# A one-sided range in words, by pydantic's name of the bound.
+_BOUND_WORDS = {"gt": "above {}", "ge": "of at least {}", "lt": "below {}", "le": "of at most {}"}
+
+
+def _bound(what: str, kind: str, value: Any) -> str:
+    """``what`` ("a number") bounded on one side, in words: "a number above 0"."""
+    return f"{what} {_BOUND_WORDS[kind].format(_number(value))}"
+
+
+def _range_of_error(err: Mapping[str, Any]) -> str | None:
+    """The range a range error names (its context, where the schema is not at hand), in
+    words; None if it names none."""
+    ctx = err.get("ctx", {})
+    for kind in _BOUND_WORDS:
+        if kind in ctx:
+            what = "an integer" if isinstance(ctx[kind], int) else "a number"
+            return _bound(what, kind, ctx[kind])
+    return None
 
 
 def _count(constraints: list[Any]) -> str | None:
@@ -256,7 +290,12 @@ def _expected(err: Mapping[str, Any], loc: tuple[Any, ...], root: type[BaseModel
     if "expected" in err.get("ctx", {}):
         return str(err["ctx"]["expected"])
     if typ in _RANGE_ERRORS:
-        return _range(*_type_at(loc, root)) or _EXPECTED.get(typ) or err["msg"]
+        return (
+            _range(*_type_at(loc, root))
+            or _range_of_error(err)
+            or _EXPECTED.get(typ)
+            or "a number in the documented range"
+        )
     if typ in ("too_short", "too_long"):
         return _count(_type_at(loc, root)[1]) or err["msg"]
     if typ == "value_error":
@@ -272,5 +311,10 @@ def _issue(err: Mapping[str, Any], data: Mapping[str, Any], root: type[BaseModel
         keys = ", ".join(model.model_fields) if _is_model(model) else "a documented key"
         return ScenarioIssue(_key(loc), "unknown key", None, f"one of: {keys}")
     value = None if typ == "missing" else _value_at(data, loc)
-    problem = "missing" if typ == "missing" else err["msg"].removeprefix("Value error, ")
+    if typ == "missing":
+        problem = "missing"
+    else:
+        problem = _RANGE_PROBLEMS.get(typ) or err["msg"].removeprefix("Value error, ")
+        if typ in _RANGE_PROBLEMS and isinstance(value, float) and not math.isfinite(value):
+            problem = _RANGE_PROBLEMS["finite_number"]  # NaN is neither small nor large
     return ScenarioIssue(_key(loc), problem, value, _expected(err, loc, root))

@@ -4,6 +4,7 @@ route, the map-to-W transform, and the named errors of bad maps and cameras."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import cv2
@@ -330,3 +331,62 @@ def test_a_start_near_a_wall_keeps_the_route_off_the_corners(tmp_path):
     predicted, missed = predicted_errors(scenario_from_dict(plan.scenario))
     assert missed == {}
     assert sorted(predicted) == ["cam1", "cam2", "cam3"]
+
+
+def test_a_bad_camera_value_names_the_cameras_file_the_camera_and_the_key(tmp_path, capsys):
+    grid = write_grid(tmp_path, [PILLAR])
+    out = tmp_path / "bad.toml"
+    cams = write_cameras(tmp_path, [CAMERAS[0], dict(CAMERAS[1], f=math.nan)])
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out)]) == 2
+    said = capsys.readouterr().out
+    assert (
+        f"{cams}: camera 1 ('cam2'): f: not a finite number (got nan); expected a number in "
+        "[1, 100000]"
+    ) in " ".join(said.split())
+    assert "<dict>" not in said
+    cams.write_text(yaml.safe_dump([dict(CAMERAS[0], position=[1.0, "2", 2.0])]))
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out)]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert "camera 0 ('cam1'): position: expected 3 finite numbers" in said
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("start", [None, ["3", "4", "30"]])
+def test_a_camera_inside_a_pillar_is_named_in_the_maps_frame(tmp_path, capsys, start):
+    grid = write_grid(tmp_path, [PILLAR])
+    out = tmp_path / "bad.toml"
+    # The pillar's middle, 2 m up: the pillar reaches the ceiling.
+    inside = [dict(CAMERAS[0], position=[8.8, 1.3, 2.0]), CAMERAS[1]]
+    cams = write_cameras(tmp_path, inside)
+    more = [] if start is None else ["--start", *start]
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out), *more]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    x0, y0, x1, y1 = (v + o for v, o in zip(PILLAR, ORIGIN * 2, strict=True))
+    assert (
+        "camera 'cam1' at (5.80, 3.30), 2.00 m above the floor, stands inside the map's "
+        f"obstacle 'occupied' (x {x0:.2f} to {x1:.2f}, y {y0:.2f} to {y1:.2f}, up to the "
+        "ceiling; the map's frame, m)"
+    ) in said
+    assert "map_" not in said
+    assert not out.exists()
+
+
+def test_a_camera_over_floor_the_map_does_not_show_is_named(tmp_path, capsys):
+    grid = write_grid(tmp_path, [])
+    image = cv2.imread(str(tmp_path / "map.pgm"), cv2.IMREAD_UNCHANGED)
+    # An unknown patch (neither free nor occupied) at x 9 to 10, y 3 to 4 of the room.
+    h = image.shape[0]
+    rows = slice(h - round(4.2 / RESOLUTION), h - round(3.2 / RESOLUTION))
+    image[rows, round(9.2 / RESOLUTION) : round(10.2 / RESOLUTION)] = 205
+    cv2.imwrite(str(tmp_path / "map.pgm"), image)
+    cams = write_cameras(tmp_path, [dict(CAMERAS[0], position=[9.5, 3.5, 2.0]), CAMERAS[1]])
+    out = tmp_path / "bad.toml"
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out)]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert "camera 'cam1' at (6.50, 5.50), 2.00 m above the floor, stands inside the map's " in said
+    # The patch as the box it is laid as: its edges within a cell of the grid (0.1 m).
+    found = re.search(r"blocked floor \(x (\S+) to (\S+), y (\S+) to (\S+), 3.00 m high", said)
+    assert found, said
+    bounds = [float(v.rstrip(",")) for v in found.groups()]
+    assert bounds == pytest.approx([6.0, 7.0, 5.0, 6.0], abs=0.1)
+    assert not out.exists()

@@ -16,10 +16,11 @@ import pytest
 import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
 from twin.instruments.marker import MarkerAssembly
 from twin.scenario import Scenario, ScenarioError, load_scenario, scenario_from_dict
+from twin.scenario.loader import validate_model
 
 from .helpers import SCENARIOS, variant
 
@@ -247,7 +248,7 @@ def test_nan_and_infinity_are_refused_in_toml(tmp_path, literal, old, new, key):
     with pytest.raises(ScenarioError) as info:
         load_scenario(path)
     issue = next(i for i in info.value.issues if i.key == key)
-    assert issue.problem == "Input should be a finite number"
+    assert issue.problem == "not a finite number"
     assert issue.expected.startswith("a number in ")
     assert repr(issue.value) == repr(float(literal))
     assert str(path) in str(info.value)
@@ -373,3 +374,46 @@ def test_the_largest_image_may_be_supersampled_up_to_the_renderer_s_limit():
     raw = _with(("cameras", 0, "image_size"), [4096, 3072])
     raw["cameras"][0] |= {"cx": 2047.5, "cy": 1535.5, "f": 5000.0, "sensor": {"supersample": 4}}
     assert "cameras[0].sensor" not in _keys_of_issues(raw)
+
+
+def test_a_site_section_names_its_keys_and_its_range():
+    # [site] is optional: its keys and ranges are read through the "| None".
+    issue, message = _issue_at(SMOKE | {"site": {"map": "m.yaml", "bogus": 1}}, "site.bogus")
+    assert issue.expected == "one of: map, map_pose, resolution"
+    issue, message = _issue_at(
+        SMOKE | {"site": {"map": "m.yaml", "resolution": 0}}, "site.resolution"
+    )
+    assert "site.resolution: too small (got 0); expected a number in (0, 10]" in message
+    issue, _ = _issue_at(SMOKE | {"site": {"map": "m.yaml", "resolution": 11}}, "site.resolution")
+    assert (issue.problem, issue.expected) == ("too large", "a number in (0, 10]")
+
+
+class _OneSided(BaseModel):
+    above: Annotated[float, Field(gt=0.0)] = 1.0
+    at_least: Annotated[int, Field(ge=2)] = 2
+    below: Annotated[float, Field(lt=5.0)] = 1.0
+    at_most: Annotated[float, Field(le=0.5)] = 0.0
+    by_name: dict[str, Annotated[float, Field(gt=0.25)]] = {}
+    # Constraints the schema cannot be walked to: the error's own bound is named.
+    counts: dict[str, Annotated[int, Field(le=3)]] = {}
+
+
+@pytest.mark.parametrize(
+    ("data", "key", "problem", "expected"),
+    [
+        ({"above": 0.0}, "above", "too small", "a number above 0"),
+        ({"at_least": 1}, "at_least", "too small", "an integer of at least 2"),
+        ({"below": 5.0}, "below", "too large", "a number below 5"),
+        ({"at_most": 0.75}, "at_most", "too large", "a number of at most 0.5"),
+        ({"above": math.nan}, "above", "not a finite number", "a number above 0"),
+        ({"by_name": {"a": 0.1}}, "by_name.a", "too small", "a number above 0.25"),
+        ({"counts": {"b": 4}}, "counts.b", "too large", "an integer of at most 3"),
+    ],
+)
+def test_every_kind_of_range_reads_in_words(data, key, problem, expected):
+    with pytest.raises(ScenarioError) as info:
+        validate_model(_OneSided, data, "numbers.toml")
+    (issue,) = info.value.issues
+    assert (issue.key, issue.problem, issue.expected) == (key, problem, expected)
+    assert "Input should" not in str(info.value)
+    assert str(info.value).startswith("numbers.toml: ")
