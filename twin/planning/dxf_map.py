@@ -215,7 +215,8 @@ def load_dxf_map(
         else:
             raise MapError(
                 path,
-                f"header $INSUNITS = {code} is not a length unit: pass units= (e.g. units='mm')",
+                f"header $INSUNITS = {code} is not a length unit; expected a length unit "
+                "there (4 mm, 5 cm, 6 m, 1 inch, 2 ft...) or none (read as metres)",
             )
     else:
         scale = unit_scale(units, path, "units")
@@ -265,8 +266,8 @@ def load_dxf_map(
         listing = ", ".join(f"{name} ({n})" for name, n in sorted(found.items())) or "none"
         raise MapError(
             path,
-            f"no wall: no line, polyline, arc or circle on the wall layers ({wall_rule}); "
-            f"layers with entities: {listing}. Pass wall_layers=[...]",
+            f"no wall: no line, polyline, arc or circle on a layer read as walls; the file's "
+            f"layers with entities: {listing}; expected the walls on {wall_rule}",
         )
 
     walls: list[MapObstacle] = []

@@ -406,9 +406,23 @@ def test_dxf_no_wall_layer_names_the_layers(tmp_path: Path):
     with pytest.raises(MapError, match="no wall") as info:
         load_map(path)
     message = str(info.value)
-    assert "Columns (1)" in message
-    assert "furniture (1)" in message
-    assert "'wall'" in message
+    assert "the file's layers with entities: Columns (1), Text (1), furniture (1)" in message
+    assert message.endswith("expected the walls on layers whose name contains 'wall'")
+    assert "wall_layers" not in message  # an argument of the Python function only
+
+
+def test_dxf_units_that_are_no_length_are_named(tmp_path: Path):
+    import ezdxf
+
+    path = write_dxf(tmp_path / "plan.dxf")
+    doc = ezdxf.readfile(path)
+    doc.header["$INSUNITS"] = 19  # light years: no unit of a floor plan
+    doc.saveas(path)
+    with pytest.raises(MapError) as info:
+        load_map(path)
+    message = str(info.value)
+    assert "header $INSUNITS = 19 is not a length unit; expected a length unit there" in message
+    assert "units=" not in message
 
 
 def test_dxf_walls_enclosing_nothing(tmp_path: Path):
