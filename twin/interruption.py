@@ -6,7 +6,8 @@ terminal) raise it too, and any of them waits out a :func:`deferred_interrupts` 
 record being written). So one path serves them all: the ``finally`` blocks on the way out
 close the run's log (a killed run's log reads back whole) and the rig's devices (closing a
 simulated base stops it; a real robot's driver will stop its robot the same way), and
-:func:`twin.cli.main` says what was interrupted and exits with :data:`EXIT_INTERRUPTED`.
+:func:`twin.cli.main` says what was interrupted (:func:`interruption_reason`: why) and exits
+with :data:`EXIT_INTERRUPTED`.
 """
 
 from __future__ import annotations
@@ -26,8 +27,15 @@ _deferring = 0  # depth of deferred_interrupts() blocks (signals reach the main 
 _pending: int | None = None  # a signal that arrived within one
 
 
+def interruption_reason(exc: BaseException) -> str:
+    """Why a command was interrupted, for the line it prints (``interrupted (REASON)``):
+    the interruption's message (``stopped by SIGTERM``), or ``Ctrl-C`` where it has none
+    (Python's own KeyboardInterrupt); never empty."""
+    return str(exc) or "Ctrl-C"
+
+
 def _interrupt(signum: int) -> KeyboardInterrupt:
-    # Ctrl-C keeps Python's own (empty) message, which the commands print as "Ctrl-C".
+    # Ctrl-C keeps Python's own (empty) message: interruption_reason() says "Ctrl-C".
     if signum == signal.SIGINT:
         return KeyboardInterrupt()
     return KeyboardInterrupt(f"stopped by {signal.Signals(signum).name}")

@@ -7,7 +7,7 @@ import signal
 
 import pytest
 
-from twin.interruption import deferred_interrupts, interruptible
+from twin.interruption import deferred_interrupts, interruptible, interruption_reason
 
 
 def _signalled_within(sig: int, depth: int, done: list[str]) -> None:
@@ -54,3 +54,13 @@ def test_nested_blocks_raise_once_at_the_outermost_end():
     with pytest.raises(KeyboardInterrupt):
         _signalled_within(signal.SIGTERM, 2, done)
     assert done == ["inner block ended"]
+
+
+@pytest.mark.parametrize(
+    ("sig", "reason"), [(signal.SIGTERM, "stopped by SIGTERM"), (signal.SIGINT, "Ctrl-C")]
+)
+def test_the_reason_of_an_interruption_is_never_empty(sig, reason):
+    with pytest.raises(KeyboardInterrupt) as caught:
+        _signalled_within(sig, 0, [])
+    assert interruption_reason(caught.value) == reason
+    assert interruption_reason(KeyboardInterrupt()) == "Ctrl-C"

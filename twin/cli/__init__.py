@@ -12,7 +12,7 @@ import sys
 
 from rich.console import Console
 
-from twin.interruption import EXIT_INTERRUPTED, interruptible
+from twin.interruption import EXIT_INTERRUPTED, interruptible, interruption_reason
 from twin.outputs import OutputError
 
 # Subcommand modules of this package, in the order ``twin --help`` lists them.
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         with interruptible():
             return int(args.func(args) or 0)
     except KeyboardInterrupt as exc:
-        err.print(f"interrupted ({exc or 'Ctrl-C'})", markup=False)
+        err.print(f"interrupted ({interruption_reason(exc)})", markup=False)
         return EXIT_INTERRUPTED
     except OutputError as exc:
         err.print(f"error: {exc}", markup=False)

@@ -22,7 +22,7 @@ from twin.campaign.check import (
 from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
-from twin.interruption import EXIT_INTERRUPTED
+from twin.interruption import EXIT_INTERRUPTED, interruption_reason
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         log = out / "log.mcap"
         kept = f"the log of the check so far is {log}" if log.exists() else "nothing was written"
-        console.print(f"interrupted ({exc or 'Ctrl-C'}): {kept}")
+        console.print(f"interrupted ({interruption_reason(exc)}): {kept}")
         return EXIT_INTERRUPTED
     if results is None:
         return 2

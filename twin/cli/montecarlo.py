@@ -18,7 +18,7 @@ from rich.progress import (
 
 from twin.cli import arguments
 from twin.cli.scene import load_or_report
-from twin.interruption import EXIT_INTERRUPTED
+from twin.interruption import EXIT_INTERRUPTED, interruption_reason
 from twin.outputs import check_folder
 
 
@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
         except KeyboardInterrupt as exc:
             console.print(
-                f"interrupted ({exc or 'Ctrl-C'}): the finished trials are in {out}; "
+                f"interrupted ({interruption_reason(exc)}): the finished trials are in {out}; "
                 "--resume continues"
             )
             return EXIT_INTERRUPTED

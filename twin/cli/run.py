@@ -15,7 +15,7 @@ from twin.campaign.strategies import strategy_for
 from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
-from twin.interruption import EXIT_INTERRUPTED
+from twin.interruption import EXIT_INTERRUPTED, interruption_reason
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         log = out / "log.mcap"
         kept = f"the log of the run so far is {log}" if log.exists() else "nothing was written"
-        console.print(f"interrupted ({exc or 'Ctrl-C'}): {kept}; no results were computed")
+        console.print(f"interrupted ({interruption_reason(exc)}): {kept}; no results were computed")
         return EXIT_INTERRUPTED
     print_results(results, console)
     if not args.no_report:

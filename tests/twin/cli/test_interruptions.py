@@ -105,3 +105,46 @@ def test_workers_end_when_a_monte_carlo_run_is_killed(tmp_path):
             proc.wait()
         with contextlib.suppress(ProcessLookupError):
             os.killpg(pgid, signal.SIGKILL)  # whatever is left of the test's own run
+
+
+def _interrupt(message: str):
+    def raising(*_args, **_kwargs):
+        raise KeyboardInterrupt(message) if message else KeyboardInterrupt
+
+    return raising
+
+
+@pytest.mark.parametrize(
+    ("message", "reason"), [("", "Ctrl-C"), ("stopped by SIGTERM", "stopped by SIGTERM")]
+)
+def test_every_command_names_why_it_was_interrupted(tmp_path, monkeypatch, capsys, message, reason):
+    import twin.cli.check
+    import twin.cli.site
+    import twin.montecarlo
+    import twin.run_cameras
+    import twin.runner
+    from twin.cli import main
+
+    # Wherever the interruption is caught, the reason is never empty.
+    monkeypatch.setattr(twin.runner, "run_scenario", _interrupt(message))
+    out = tmp_path / "run"
+    assert main(["run", str(SMOKE), "--no-report", "--out", str(out)]) == EXIT_INTERRUPTED
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"interrupted ({reason}): nothing was written; no results were computed" in said
+    monkeypatch.setattr(twin.montecarlo, "run_montecarlo", _interrupt(message))
+    out = tmp_path / "mc"
+    assert main(["montecarlo", str(SMOKE), "--trials", "2", "--out", str(out)]) == 130
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"interrupted ({reason}): the finished trials are in {out}; --resume continues" in said
+    monkeypatch.setattr(twin.run_cameras, "latest_cameras", lambda *_: None)
+    monkeypatch.setattr(twin.cli.check, "_check", _interrupt(message))
+    out = tmp_path / "check"
+    args = ["check", str(SMOKE), "--cameras", str(tmp_path), "--out", str(out)]
+    assert main(args) == EXIT_INTERRUPTED
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"interrupted ({reason}): nothing was written" in said
+    # Where no command catches it, the command line does.
+    monkeypatch.setattr(twin.cli.site, "run", _interrupt(message))
+    args = ["site", str(tmp_path / "map.yaml"), "--cameras", "c.yaml", "--out", "x.toml"]
+    assert main(args) == EXIT_INTERRUPTED
+    assert capsys.readouterr().err.strip() == f"interrupted ({reason})"
