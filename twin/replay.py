@@ -78,8 +78,9 @@ def replay_log(
         raise ValueError(f"adjust must be one of {CAMERA_MODES} or None, got {adjust!r}")
     if adjust is not None and model != "tsai":
         raise ValueError(
-            "the adjustment works in Tsai's model: replay with model tsai to adjust, or "
-            "without adjusting to refit in OpenCV's"
+            f"--adjust {adjust}: the adjustment works in Tsai's model, not OpenCV's; pass "
+            "--model tsai (the default) to adjust, or --adjust none to refit in OpenCV's "
+            "model (from Python: model='tsai', or adjust=None)"
         )
     contents = read_log(log)
     messages = list(contents.messages)

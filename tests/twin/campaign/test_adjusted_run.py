@@ -79,6 +79,25 @@ def test_replay_refuses_to_adjust_in_opencvs_model(run, tmp_path):
         replay_log(out / "log.mcap", tmp_path / "y", report=False, adjust="both")
 
 
+def test_replay_names_the_flags_that_adjust_or_refit(tmp_path, capsys):
+    from twin.cli import main
+
+    log = tmp_path / "log.mcap"
+    log.write_bytes(b"")  # refused before it is read
+    out = tmp_path / "out"
+    assert (
+        main(["replay", str(log), "--model", "opencv", "--adjust", "shared", "--out", str(out)])
+        == 2
+    )
+    said = " ".join(capsys.readouterr().out.split())
+    assert (
+        "error: --adjust shared: the adjustment works in Tsai's model, not OpenCV's; pass "
+        "--model tsai (the default) to adjust, or --adjust none to refit in OpenCV's model"
+    ) in said
+    assert "replay with model" not in said
+    assert not out.exists()
+
+
 def test_without_anything_measured_twice_the_adjustment_says_so(run):
     sc, _, out = run
     messages = [m for m in read_log(out / "log.mcap").messages if "control" not in m.topic]
