@@ -68,11 +68,17 @@ def check_scenario(sc: Scenario) -> list[ScenarioIssue]:
 
 
 def _check_control_points(sc: Scenario) -> list[ScenarioIssue]:
-    """``control_points``: unique names, inside the space."""
+    """``control_points``: unique names, inside the space, none inside an obstacle below its
+    top (no instrument would see it there)."""
     issues = []
     seen: set[str] = set()
     (x0, x1), (y0, y1) = sc.space.x_range, sc.space.y_range
     z0, z1 = sc.space.z_range
+    obstacles = sc.space.obstacles
+    xyz = np.array([p.position for p in sc.control_points]).reshape(-1, 3)
+    # buried[k, i]: point i lies in obstacle k, below its top.
+    tops = np.array([z0 + ob.size[2] for ob in obstacles]).reshape(-1, 1)
+    buried = inside_obstacles(obstacles, xyz[:, :2]) & (xyz[:, 2] < tops)
     for i, point in enumerate(sc.control_points):
         key = f"control_points[{i}]"
         if point.name in seen:
@@ -95,6 +101,17 @@ def _check_control_points(sc: Scenario) -> list[ScenarioIssue]:
                     f"x in [{x0:g}, {x1:g}], y in [{y0:g}, {y1:g}], z in ({z0:g}, {z1:g}) m",
                 )
             )
+            continue
+        issues += [
+            ScenarioIssue(
+                f"{key}.position",
+                f"control point {point.name!r} lies inside obstacle {obstacles[k].name!r} "
+                f"(below its top, z = {z0 + obstacles[k].size[2]:g} m)",
+                list(point.position),
+                "a position on free floor or above the obstacle",
+            )
+            for k in np.flatnonzero(buried[:, i])
+        ]
     return issues
 
 

@@ -349,3 +349,25 @@ def test_a_yaml_scenario_that_repeats_a_key_is_refused(tmp_path):
     path.write_text("name: a\nname: b\n", encoding="utf-8")
     issue = _only(_error(path), "<syntax>")
     assert "a second time" in issue.problem
+
+
+def _with_control_point(tmp_path, name: str, position: list[float], pillar_height: float = 3.0):
+    point = f'[[control_points]]\nname = "{name}"\nposition = {position}\n\n{ROUTE_LINE}'
+    pillar = ("size = [0.6, 0.6, 3.0]", f"size = [0.6, 0.6, {pillar_height}]")
+    return variant(tmp_path, name, [(ROUTE_LINE, point), pillar])
+
+
+def test_a_control_point_inside_an_obstacle_is_refused_naming_both(tmp_path):
+    # The smoke room's pillar: centre (6.5, -2.2), 0.6 m square, its top at z = 2.6 m.
+    err = _error(_with_control_point(tmp_path, "prism", [6.6, -2.1, 0.0]))
+    issue = _only(err, "control_points[0].position")
+    assert issue.problem == (
+        "control point 'prism' lies inside obstacle 'pillar' (below its top, z = 2.6 m)"
+    )
+    assert issue.value == [6.6, -2.1, 0.0]
+    assert issue.expected == "a position on free floor or above the obstacle"
+    # Beside it, or on top of a pillar 1 m high (its top at z = 0.6 m): points to be seen.
+    load_scenario(_with_control_point(tmp_path, "beside", [6.5, -1.85, 0.0]))
+    load_scenario(_with_control_point(tmp_path, "on_top", [6.5, -2.2, 0.7], 1.0))
+    err = _error(_with_control_point(tmp_path, "under", [6.5, -2.2, 0.5], 1.0))
+    assert "(below its top, z = 0.6 m)" in _only(err, "control_points[0].position").problem
