@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.wrappers import FlattenObservation
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 
 import twin.sim  # noqa: F401  (headless rendering)
 from tests.twin.envs.test_sites_and_moves import ACTIONS
@@ -237,9 +237,6 @@ NOT_ACTIONS = (
 )
 
 
-_STEPPED: dict = {}  # one environment for every example (a fresh one costs a site's table)
-
-
 @pytest.mark.parametrize("strict", [False, True])
 def test_an_action_outside_the_space_is_refused(strict):
     env = CpsCampaignEnv(SMOKE, strict=strict)
@@ -271,17 +268,26 @@ def test_an_action_outside_the_space_is_refused(strict):
     env.close()
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@pytest.fixture(scope="module")
+def stepped():
+    """One environment for every example, and the plan's steps after its reset."""
+    env = CpsCampaignEnv(SMOKE)
+    env.reset(seed=4)
+    yield env, env.plan.steps
+    env.close()
+
+
+@settings(max_examples=40, deadline=None)
 @given(ACTIONS)
-def test_a_step_takes_an_action_of_the_space_or_refuses_it(labelled):
+def test_a_step_takes_an_action_of_the_space_or_refuses_it(stepped, labelled):
     action, index = labelled
-    env = _STEPPED.setdefault("env", CpsCampaignEnv(SMOKE))
+    env, start = stepped
     _, info = env.reset(seed=4)
     mask = info["action_mask"]
     if index is None:
         with pytest.raises(ValueError, match=r"the action space Discrete\(\d+\)"):
             env.step(action)
-        assert env.plan.steps == _STEPPED.setdefault("steps", env.plan.steps)
+        assert env.plan.steps == start  # refused before anything changed
         return
     _, _, _, _, after = env.step(action)
     # A move inside the space that is forbidden now falls back, as documented.
