@@ -53,17 +53,29 @@ class RoutePath:
         h = self.heading(s)
         return self.at(s) + lateral * np.array([-math.sin(h), math.cos(h)])
 
-    def project(self, xy: ArrayLike, near: float | None = None, window: float = 20.0) -> float:
+    def project(
+        self,
+        xy: ArrayLike,
+        near: float | None = None,
+        window: float = 20.0,
+        tie: float = 1e-9,
+    ) -> float:
         """Arc length of the path's point nearest to ``xy``, m; with ``near``, only the part
         of the path within ``window`` m of arc length ``near`` is searched (a path that comes
         back past itself has two nearest points).
 
         The path goes on straight beyond its ends: a point nearest to that straight
         continuation (within the window) projects to the end it continues, not to another
-        part of a path that comes back near its end."""
+        part of a path that comes back near its end.
+
+        Where the path passes within ``tie`` m of the nearest distance at more than one arc
+        length (a route that comes back along itself: out to a turn and back on the same
+        line), the one nearest in arc length to ``near`` is taken (without ``near``, the
+        first along the path). Taking the first whatever ``near`` put a group on its way
+        back onto the way out, and it drove round the turn again, leg after leg."""
         q = np.asarray(xy, dtype=float).reshape(2)
         lo, hi = (-math.inf, math.inf) if near is None else (near - window, near + window)
-        best, best_d = float(np.clip(near, 0.0, self.length)) if near is not None else 0.0, math.inf
+        found: list[tuple[float, float]] = []  # (arc length, distance), in path order
         for i, (a, d, n) in enumerate(
             zip(self.points[:-1], self.directions, self.lengths, strict=True)
         ):
@@ -72,19 +84,23 @@ class RoutePath:
             if t_hi < t_lo:
                 continue
             t = float(np.clip((q - a) @ d, t_lo, t_hi))
-            dist = float(np.linalg.norm(a + t * d - q))
-            if dist < best_d - 1e-9:
-                best, best_d = self.starts[i] + t, dist
+            found.append((self.starts[i] + t, float(np.linalg.norm(a + t * d - q))))
         for end, s_end, sign in ((0, 0.0, -1.0), (-1, self.length, 1.0)):
             if not lo <= s_end <= hi:
                 continue
             d = self.directions[end]
             beyond = sign * float((q - self.points[end]) @ d)
             if beyond > 0.0:
-                dist = float(np.linalg.norm(self.points[end] + sign * beyond * d - q))
-                if dist < best_d - 1e-9:
-                    best, best_d = s_end, dist
-        return best
+                found.append(
+                    (s_end, float(np.linalg.norm(self.points[end] + sign * beyond * d - q)))
+                )
+        if not found:
+            return float(np.clip(near, 0.0, self.length)) if near is not None else 0.0
+        nearest = min(dist for _, dist in found)
+        close = [s for s, dist in found if dist <= nearest + max(tie, 1e-9)]
+        if near is None:
+            return float(close[0])
+        return float(min(close, key=lambda s: abs(s - near)))
 
     def vertices_between(self, s0: float, s1: float) -> list[NDArray[np.float64]]:
         """The path's corners strictly between arc lengths ``s0`` and ``s1`` (in travel

@@ -34,3 +34,14 @@ def test_on_an_open_route_points_past_an_end_project_to_it(beyond, side, near):
     assert path.project([10.0 + side, 10.0 + beyond], near) == 20.0
     # A point beside the route still projects onto it.
     assert np.isclose(path.project([10.0 + 0.5 * side, 5.0], near), 15.0)
+
+
+def test_on_a_route_back_along_itself_the_pass_nearest_in_arc_length_is_taken():
+    # Out to x = 4 m and back along the same line: every point of it is on both passes.
+    # The group's place after a leg that ended at arc length 4.245 m (x = 3.755 m, on the
+    # way back) is on the way back, not the way out; without ``near``, the first pass.
+    path = RoutePath([[0.0, 0.0], [4.0, 0.0], [0.0, 0.0]])
+    assert np.isclose(path.project([3.78, 0.02], near=4.245), 4.22)
+    assert np.isclose(path.project([3.78, -0.02], near=3.0), 3.78)
+    assert np.isclose(path.project([3.78, 0.02]), 3.78)
+    assert np.isclose(path.project([2.0, 0.01], near=7.9), 6.0)
