@@ -10,6 +10,8 @@ Decisions and their execution are apart:
   executes the answers: :mod:`.travel` (CPS legs: the children's and the parent's moves,
   placing and checking children, the parent's fix), :mod:`.collection` (a camera's data
   and its calibration), :mod:`.shooting` (a child's corner cubes measured, with retries).
+- :mod:`.bounds`: how long each of the campaign's loops may go on (from the scenario)
+  before it ends with the failure ``no_progress`` (:class:`NoProgress`).
 - :mod:`.journal`: the campaign's records, counts and progress; :mod:`.records`: the
   records; :mod:`.log_results`: a run's results from its log.
 - :mod:`.plan`: the geometry the strategies decide with: the route, the legs, the
@@ -30,7 +32,7 @@ from twin.campaign.paper_strategy import PaperStrategy
 from twin.campaign.procedure import Campaign
 from twin.campaign.strategies import DEFAULT_STRATEGY, STRATEGIES, strategy_named
 from twin.campaign.strategy import CampaignView, Strategy
-from twin.campaign.travel import CampaignAborted
+from twin.campaign.travel import CampaignAborted, NoProgress
 
 __all__ = [
     "DEFAULT_STRATEGY",
@@ -39,6 +41,7 @@ __all__ = [
     "CampaignAborted",
     "CampaignOutcome",
     "CampaignView",
+    "NoProgress",
     "PaperStrategy",
     "Progress",
     "Strategy",

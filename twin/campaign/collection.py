@@ -4,7 +4,9 @@ camera is calibrated with Tsai's model.
 
 A stop that gives no point (no heading shows the prisms, the child cannot get there, its
 prisms are not measured, not every LED is found) is counted as a failure and replaced by
-the plan's next spare stop. Where the plan says so (:attr:`twin.campaign.strategy.StopPlan.
+the plan's next spare stop. A data set whose stops reach their bound
+(:func:`twin.campaign.bounds.stops_bound`) ends with the failure ``no_progress`` and the
+points it has. Where the plan says so (:attr:`twin.campaign.strategy.StopPlan.
 partial`: stops chosen for accuracy) a stop where some LEDs are found gives a point with
 those (the missing LEDs' failures still counted).
 """
@@ -17,6 +19,7 @@ from numpy.typing import NDArray
 from calib.detection.sequence import SwitchingSequence
 from calib.io.camera_files import camera_to_dict
 from calib.tsai import calibrate_tsai
+from twin.campaign.bounds import stops_bound
 from twin.campaign.journal import Journal
 from twin.campaign.records import CalibrationRecord, DataPoint
 from twin.campaign.strategy import PlannedStop, StopPlan
@@ -69,10 +72,17 @@ class DataCollection:
             return np.zeros((0, 3)), np.zeros((0, 2)), []
         points: list[DataPoint] = []
         taken = 0
-        while taken < target:
+        most = stops_bound(target, self.settings.progress_slack)
+        for count in range(most + 1):
+            if taken >= target:
+                break
             with timed(self.rig.timings, "planning"):
                 planned = plan.next()
             if planned is None:
+                break
+            if count == most:
+                what = f"stops for {camera}'s {dataset} data ({taken} of {target} points)"
+                self.travel.no_progress(what, count, most, child, camera)
                 break
             self.journal.show(robot=child, camera=camera, points=taken)
             point = self._point_at(planned, child, camera, dataset, visit, plan.partial)

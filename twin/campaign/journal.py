@@ -122,6 +122,11 @@ class Journal:
         self._current = Progress(stage, camera=camera, detail=detail)
         self.show()
 
+    @property
+    def current(self) -> Progress:
+        """What the campaign is doing now (its stage first)."""
+        return self._current
+
     def show(self, **changes: Any) -> None:
         """Tell the progress display what changed (``robot``, ``camera``, ``points``)."""
         self._current = replace(self._current, **changes, calibrated=len(self.outcome.calibrations))

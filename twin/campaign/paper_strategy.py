@@ -51,6 +51,16 @@ ARRIVED = 0.05
 SHORTEST_LEG = 0.3
 """Legs are halved for lack of room down to this fraction of a step."""
 
+
+def halvings(length: float, shortest: float) -> int:
+    """How many times a leg of ``length`` m is halved before it is no longer than
+    ``shortest`` m (> 0): ``ceil(log2(length / shortest))``, 0 for a leg already that
+    short (or of no finite length)."""
+    if not (math.isfinite(length) and length > shortest > 0):
+        return 0
+    return math.ceil(math.log2(length / shortest))
+
+
 MAX_TURN_AT_STOP_DEG = 50.0
 """Farthest a child turns at a data stop to show its prisms, deg."""
 
@@ -139,7 +149,8 @@ class PaperStrategy(Strategy):
         # legs); the nominal one where nothing else fits.
         for k in range(len(margins)):
             ends = list(self._leg_ends)
-            while True:
+            # The leg, then each half down to the shortest (one more try for rounding).
+            for _ in range(halvings(abs(ends[0] - s_now), SHORTEST_LEG * step) + 2):
                 s_next = ends[0]
                 if s_next not in legs:
                     legs[s_next] = self.leg_between(

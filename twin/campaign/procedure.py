@@ -17,6 +17,9 @@ are skipped, a station that cannot be reached or yields too few points is report
 failure is recorded (``/campaign/failure``) with its kind; the campaign's own recoveries
 (a child turning, the parent stepping aside, a prism aimed at again) are events
 (``/campaign/event``).
+Every loop ends within a bound computed from the scenario (:mod:`.bounds`): a travel whose
+legs, a campaign whose travels, or robots whose drives reach theirs end the campaign with
+the failure ``no_progress``, which names the stage, where the parent stands and the count.
 
 :meth:`Campaign.steps` is the procedure as a generator of questions (a
 :class:`twin.campaign.strategy.Question` for each decision, answered by ``send``):
@@ -33,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.detection.sequence import SwitchingSequence
+from twin.campaign.bounds import CampaignBounds, campaign_bounds
 from twin.campaign.collection import DataCollection
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import CampaignOutcome, Journal, Progress
@@ -52,7 +56,7 @@ from twin.campaign.strategy import (
     Strategy,
     Visit,
 )
-from twin.campaign.travel import CampaignAborted, Travel
+from twin.campaign.travel import CampaignAborted, NoProgress, Travel
 from twin.hal.conformance import check_rig_structure
 from twin.hal.errors import DeviceLostError
 from twin.hal.recording import Recorder
@@ -64,7 +68,7 @@ from twin.localization.sequence import CpsSequence
 from twin.scenario.schema import Scenario
 from twin.timing import timed
 
-__all__ = ["Campaign", "CampaignAborted", "CampaignOutcome", "Progress"]
+__all__ = ["Campaign", "CampaignAborted", "CampaignOutcome", "NoProgress", "Progress"]
 
 
 class _RigView(CampaignView):
@@ -121,6 +125,11 @@ class Campaign:
         progress: called with a :class:`Progress` at each stage and point.
         strategy: the campaign's decisions (default: the one ``campaign.strategy`` names).
 
+    Attributes:
+        bounds: the most each of its loops may take (:func:`twin.campaign.bounds.
+            campaign_bounds` of the scenario); a loop that reaches its bound ends with the
+            failure ``no_progress``.
+
     Raises:
         twin.hal.RigCheckError: the rig lacks a device the scenario needs (an LED sensor
             for one of its cameras, say).
@@ -139,6 +148,7 @@ class Campaign:
         self.scenario = scenario
         self.settings = scenario.campaign
         self.strategy = strategy if strategy is not None else strategy_named(self.settings.strategy)
+        self.bounds: CampaignBounds = campaign_bounds(scenario)
         self.journal = Journal(recorder, rig.clock, progress)
         solver = _solver(rig)
         # With a noise-free instrument, consistency tests have no noise to be tested against.
@@ -158,6 +168,7 @@ class Campaign:
             marker,
             self.settings.lock_retries,
             self.false_alarm_rate,
+            self.bounds.drives,
         )
         sequence = (
             SwitchingSequence.binary(len(marker.leds_body))
@@ -239,9 +250,13 @@ class Campaign:
                 return self._end()
             if len(pts):
                 self.references[camera] = (pts, pix)
-        while True:
+        travels = self.bounds.travels
+        for count in range(travels + 1):
             goal = yield NextVisit()
             if goal is None:
+                break
+            if count == travels:
+                self._aborted(self.travel.no_progress("travels", count, travels), goal)
                 break
             if not (yield from self._go_to(goal)):
                 break
@@ -302,17 +317,26 @@ class Campaign:
 
         Raises:
             CampaignAborted: no leg could be planned, or CPS lost the children.
+            NoProgress: the strategy asked for more legs than :attr:`bounds` allows.
         """
-        while True:
+        legs = self.bounds.legs
+        for count in range(legs + 1):
             leg: Leg | NoLeg | None = yield NextLeg(goal)
             if leg is None:
                 return True
             if isinstance(leg, NoLeg):
                 self.journal.failure(leg.kind, leg.message)
                 raise CampaignAborted(leg.reason)
+            if count == legs:
+                if isinstance(goal, Return):
+                    where = goal.reason or "to a place measured before"
+                else:
+                    where = f"to the station of {goal.camera}"
+                raise self.travel.no_progress(f"legs {where}", count, legs)
             reached = self.travel.execute(leg)
             if not reached and leg.arrives:
                 return False
+        raise AssertionError("unreachable: the last pass returns or raises")
 
 
 def _solver(rig: Rig) -> str:

@@ -72,6 +72,9 @@ before the station counts as moved, m. The parent measured it from this station 
 fix, or placing it): the two agree to the shots' noise, a few millimetres; a push of the
 parent that turns it 10 mrad moves a child 3 m away by 30 mm."""
 
+NO_PROGRESS = "no_progress"
+"""The failure of a loop of the campaign that reached its bound (:mod:`twin.campaign.bounds`)."""
+
 FIX_ATTEMPTS = 2 + len(SIDESTEPS)
 """Attempts at the parent's fix: twice where it stopped (starting from either child), then
 once after each side step."""
@@ -79,6 +82,29 @@ once after each side step."""
 
 class CampaignAborted(RuntimeError):
     """The group cannot go on (CPS lost both children, or no leg can be planned)."""
+
+
+class NoProgress(CampaignAborted):
+    """A loop of the campaign reached its bound (:mod:`twin.campaign.bounds`): the campaign
+    cannot progress. Made and recorded by :meth:`Travel.no_progress`.
+
+    Attributes:
+        stage: the campaign's stage (``reference``, ``travel``, ``station``, ``return``).
+        what: what was counted (legs of a travel, travels, stops of a data set, drives).
+        position: (2,) where the parent stands (its CPS estimate), m in W.
+        count: how many were taken. bound: the most allowed.
+    """
+
+    def __init__(
+        self, stage: str, what: str, position: NDArray[np.float64], count: int, bound: int
+    ) -> None:
+        self.stage, self.what, self.count, self.bound = stage, what, count, bound
+        self.position = np.asarray(position, dtype=float).reshape(2).copy()
+        x, y = self.position
+        super().__init__(
+            f"no progress in the {stage} stage, the parent at ({x:.2f}, {y:.2f}) m: {count} "
+            f"{what}, the most the scenario allows (campaign.progress_slack)"
+        )
 
 
 class Travel:
@@ -89,6 +115,8 @@ class Travel:
         space: the map (for the drives' clearance). marker: the assembly as surveyed.
         lock_retries: further aims after a lost prism lock.
         false_alarm_rate: of the consistency tests (None: no test, a noise-free instrument).
+        max_drives: the most drives of all the robots together
+            (:attr:`twin.campaign.bounds.CampaignBounds.drives`; None: no bound).
     """
 
     def __init__(
@@ -100,8 +128,11 @@ class Travel:
         marker: MarkerAssembly,
         lock_retries: int,
         false_alarm_rate: float | None,
+        max_drives: int | None = None,
     ) -> None:
         self.rig, self.cps, self.journal = rig, cps, journal
+        self.max_drives = max_drives
+        self.drives = 0  # every robot's, so far
         self.space, self.marker = space, marker
         self.lock_retries = lock_retries
         self.false_alarm_rate = false_alarm_rate
@@ -177,11 +208,48 @@ class Travel:
                 heading = math.atan2(*(goal_xy - here)[::-1])
                 for k in range(1, pieces):
                     point = here + (goal_xy - here) * (k / pieces)
-                    result = base.drive_to(point, self._showing(point, heading))
+                    result = self._go(base, point, self._showing(point, heading))
                     if not result.reached:
                         return result
                     self._track(base.name)
+        return self._go(base, goal_xy, goal_yaw)
+
+    def _go(
+        self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
+    ) -> DriveResult:
+        """Every drive of a robot, counted.
+
+        Raises:
+            NoProgress: the campaign's robots have driven ``max_drives`` times already.
+        """
+        if self.max_drives is not None and self.drives >= self.max_drives:
+            raise self.no_progress("drives of the robots", self.drives, self.max_drives)
+        self.drives += 1
         return base.drive_to(goal_xy, goal_yaw)
+
+    def no_progress(
+        self, what: str, count: int, bound: int, robot: str = "", camera: str = ""
+    ) -> NoProgress:
+        """A loop reached its bound: the failure ``no_progress`` recorded, naming the stage,
+        where the parent stands, ``what`` was counted, the ``count`` and the ``bound``. The
+        exception, for a caller that cannot go on to raise."""
+        stuck = NoProgress(
+            self.journal.current.stage, what, self.cps.parent.translation[:2], count, bound
+        )
+        x, y = stuck.position
+        self.journal.failure(
+            NO_PROGRESS,
+            str(stuck),
+            robot,
+            camera,
+            stage=stuck.stage,
+            what=what,
+            x=float(x),
+            y=float(y),
+            count=count,
+            bound=bound,
+        )
+        return stuck
 
     # -- a child's drives off the route ----------------------------------------------------------
     def standing_robots(self, mover: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -341,7 +409,7 @@ class Travel:
                 return obs
             pose = self.child_pose(child)
             self.journal.event("child_turned", f"turning {turn:+.0f} deg to show its prisms", child)
-            self.rig.children[child].drive_to(pose[:2], pose[2] + math.radians(turn))
+            self._go(self.rig.children[child], pose[:2], pose[2] + math.radians(turn))
             obs = self.place_child(child)
         return obs
 
@@ -456,7 +524,7 @@ class Travel:
         self.journal.event(
             "parent_stepped_aside", f"{step:+.1f} m to see the children", parent.name
         )
-        parent.drive_to(target, odo.yaw)
+        self._go(parent, target, odo.yaw)
         return True
 
     def _observe_children(

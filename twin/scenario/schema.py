@@ -765,6 +765,10 @@ class CampaignSettings(Frozen):
             where only some LEDs are found then gives a point with those (the others'
             failures still journaled). Every fidelity supports both (the batch replays
             each stop with the LEDs its noise-free plan found).
+        progress_slack: how many times what a campaign that progresses needs each of its
+            loops may take (the legs of a travel, the travels, the stops of a data set, the
+            drives) before it ends with the failure ``no_progress``; the bounds are
+            :func:`twin.campaign.bounds.campaign_bounds`. From 1 to 100; default 2.
     """
 
     reference_cameras: tuple[Name, ...] | None = Field(default=None, max_length=MAX_CAMERAS)
@@ -778,6 +782,7 @@ class CampaignSettings(Frozen):
     strategy: Name = "planned"
     child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
     data_stops: Literal["all_leds", "accuracy"] = "all_leds"
+    progress_slack: Annotated[float, Field(ge=1.0, le=100.0)] = 2.0
 
 
 TurnDeg = Annotated[float, Field(ge=-180.0, le=180.0)]
