@@ -24,6 +24,7 @@ from twin.drivers.rig_file import (
     check_fits,
 )
 from twin.hal.devices import Camera, LedSensor, MarkerLeds, MobileBase, TotalStation
+from twin.hal.errors import DeviceLostError
 from twin.hal.led_sensing import ImageLedSensor
 from twin.hal.rig import Rig
 from twin.scenario.schema import Noise, Scenario
@@ -81,6 +82,10 @@ def build_rig(rig_file: RigFile, scenario: Scenario) -> DriverRig:
                 identities[key] = identify(device)
         except ImportError:
             raise
+        except DeviceLostError as exc:
+            # Its message names the device and, where given, its link already.
+            said = str(exc) if exc.link else f"{label} at {where}: {exc}"
+            raise DeviceConnectError(said) from exc
         except Exception as exc:
             raise DeviceConnectError(f"{label} at {where}: {type(exc).__name__}: {exc}") from exc
         return device

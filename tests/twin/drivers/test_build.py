@@ -93,3 +93,21 @@ def test_the_probe_closes_a_device_that_cannot_identify_itself(
     ]
     assert "no answer to the identity request" in reports[0].facts["error"]
     assert all(d.closed for d in opened)
+
+
+@pytest.mark.parametrize("link", ["/dev/pts/5 (GeoCOM)", ""])
+def test_a_device_lost_while_opening_is_named_once_with_its_link(
+    opened: list[FakeDevice], monkeypatch: pytest.MonkeyPatch, link: str
+) -> None:
+    def lost(device: object, clock: object, noise: object) -> None:
+        raise DeviceLostError("total_station", "connection lost", link=link)
+
+    monkeypatch.setattr(build, "open_total_station", lost)
+    with pytest.raises(DeviceConnectError) as caught:
+        build_rig(load_rig_file(EXAMPLE), load_scenario(HALL))
+    message = str(caught.value)
+    assert message.count("connection lost") == 1
+    if link:
+        assert message == "total_station on /dev/pts/5 (GeoCOM): connection lost"
+    else:
+        assert message.startswith("total station at ")
