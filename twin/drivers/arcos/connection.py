@@ -170,9 +170,7 @@ class PioneerConnection(Closing):
             self._write(command_packet(Command.OPEN))
         except (serial.SerialException, OSError) as e:
             self._abandon()
-            raise DeviceLostError(
-                name, f"connection lost: the link failed: {e}", link=self.link, port=port
-            ) from None
+            raise self._lost_link(e) from None
         except BaseException:
             self._abandon()
             raise
@@ -233,12 +231,7 @@ class PioneerConnection(Closing):
             try:
                 data = self._read_bytes(self.clock.wall(POLL))
             except (serial.SerialException, OSError) as e:
-                raise DeviceLostError(
-                    self.name,
-                    f"connection lost: the link failed: {e}",
-                    link=self.link,
-                    port=self.port,
-                ) from None
+                raise self._lost_link(e) from None
             for payload in self._reader.feed(data):
                 if is_sip(payload):
                     # A session from an earlier client is still open: close it, start over.
@@ -331,6 +324,12 @@ class PioneerConnection(Closing):
             raise DeviceLostError(
                 self.name, "the connection is closed", link=self.link, port=self.port
             )
+
+    def _lost_link(self, error: BaseException) -> DeviceLostError:
+        """The error of a link that failed under a read or a write (``error``)."""
+        return DeviceLostError(
+            self.name, f"connection lost: the link failed: {error}", link=self.link, port=self.port
+        )
 
     def identify(self) -> dict[str, object]:
         """The robot's name, type and subtype (its SYNC2 answer) and battery voltage, V."""
@@ -426,12 +425,7 @@ class PioneerConnection(Closing):
             self._write(packet)
         except (serial.SerialException, OSError, ValueError, TypeError) as e:
             self._mark_lost(f"connection lost: the link failed: {e}")
-            raise DeviceLostError(
-                self.name,
-                f"connection lost: the link failed: {e}",
-                link=self.link,
-                port=self.port,
-            ) from None
+            raise self._lost_link(e) from None
 
     def write_raw(self, data: bytes) -> None:
         """Put bytes on the line as they are (a diagnostic: what a noisy line does)."""
