@@ -142,6 +142,8 @@ class StandSite:
     Attributes:
         plan: the campaign's plan before its first decision. start: the plan's steps of
             the start (the reference data). start_time: how long the start took, s.
+        start_xy: each robot's (2,) place at the start, m (W). ready_xy: where the start's
+            reference data left it, m (W): the first leg's drives start there.
         stations, order: as :class:`twin.envs.planner.CampaignPlanner`'s.
         stands: every stand. at: each station's stand, by the station's name.
         data: each station's data, by name (a station the paper's run did not calibrate at
@@ -194,6 +196,9 @@ class StandSite:
         self.speed = {name: session.max_speed(name) for name in robots}
         where = {name: self.plan.start[name].pose[:2].copy() for name in robots}
         self.start_xy = {name: xy.copy() for name, xy in where.items()}
+        # The reference data moved the children: the first leg drives from their last stops.
+        self.drive_time(where, ((s.robot, s.believed[:2]) for s in start if isinstance(s, Drive)))
+        self.ready_xy = {name: xy.copy() for name, xy in where.items()}
         self.data: dict[str, _Data] = {}
         overheads: list[float] = []
         goal: object = None
@@ -438,7 +443,7 @@ class StandPlanner(EpisodePlanner):
         self._goal: str | None = None
         self._travel: list[Stand] = []
         self._direction = 1.0
-        self._where = {name: xy.copy() for name, xy in self.site.start_xy.items()}
+        self._where = {name: xy.copy() for name, xy in self.site.ready_xy.items()}
         self._mask: NDArray[np.bool_] | None = None
         self._legs: list[_Leg | None] = []
         self.computed = 0
