@@ -12,6 +12,7 @@ from calib.rotation import euler2matrix
 from calib.synthetic import led_points, paper_camera
 from calib.tsai import TSAI_PARAMETERS, _pack, predicted_covariance
 from calib.tsai_batch import (
+    INVALID_PX,
     TsaiBatchResult,
     calibrate_tsai_batch,
     covariance_from_point_errors,
@@ -283,3 +284,23 @@ def test_shared_errors_add_their_part_of_the_joint_covariance() -> None:
     assert_allclose(lost[0], expected[8:11, 8:11], rtol=1e-10)
     with pytest.raises(ValueError, match="shared must be"):
         position_covariance_from_blocks(cams, pts[None], blocks[None], shared=shared[:60])
+
+
+def test_a_solution_with_points_behind_the_camera_is_not_converged() -> None:
+    # A point behind the camera does not project: its residual is the pixel INVALID_PX
+    # minus the observed one. Trial 1 observed it there (its residual 0) and the other 39
+    # exactly: the fit is exact and the steps stop at once, yet a calibration with a point
+    # behind the camera is no solution. Trial 2 has every point behind (reflected through
+    # the optical centre). Trial 0 is the data as observed.
+    cam = paper_camera(1)
+    pts = led_points(cam, 40, np.random.default_rng(8))
+    uv = cam.project(pts)
+    one, uv_one = pts.copy(), uv.copy()
+    one[7], uv_one[7] = 2.0 * cam.position - pts[7], INVALID_PX
+    mirrored = 2.0 * cam.position - pts
+    res = calibrate_tsai_batch(np.stack([pts, one, mirrored]), np.stack([uv, uv_one, uv]),
+                               cam.image_size, cam)  # fmt: skip
+    assert np.abs(res.position[:2] - cam.position).max() < 1e-9
+    assert res.sigma_px[:2].max() < 1e-9
+    assert res.iterations[1] == 0
+    assert_array_equal(res.converged, [True, False, False])
