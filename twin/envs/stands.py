@@ -31,9 +31,10 @@ What the table leaves out, which the campaign planner keeps (the price of its sp
 - a station's data stops and calibration are those the paper's campaign took there,
   whatever formation the group arrived in (its anchor child stood where the paper's
   left it); a station the paper's run could not calibrate at cannot be calibrated at;
-- time: each robot's straight travel at its top speed, as the geometric clock counts it,
-  plus the shots' time of a leg measured on the site's paper run; a station's data take
-  the time they took in that run.
+- time: each robot's straight travel at its top speed from where it stood (the first
+  leg from where the reference data left it), as the geometric clock counts it, plus the
+  shots' time of a leg measured on the site's paper run; a station's data take the time
+  they took in that run.
 """
 
 from __future__ import annotations
