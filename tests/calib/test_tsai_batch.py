@@ -290,13 +290,14 @@ def test_a_solution_with_points_behind_the_camera_is_not_converged() -> None:
     # A point behind the camera does not project: its residual is the pixel INVALID_PX
     # minus the observed one. Trial 1 observed it there (its residual 0) and the other 39
     # exactly: the fit is exact and the steps stop at once, yet a calibration with a point
-    # behind the camera is no solution. Trial 2 has every point behind (reflected through
-    # the optical centre). Trial 0 is the data as observed.
+    # behind the camera, even 1 cm behind, is no solution. Trial 2 has every point behind
+    # (reflected through the optical centre). Trial 0 is the data as observed.
     cam = paper_camera(1)
     pts = led_points(cam, 40, np.random.default_rng(8))
     uv = cam.project(pts)
     one, uv_one = pts.copy(), uv.copy()
-    one[7], uv_one[7] = 2.0 * cam.position - pts[7], INVALID_PX
+    axis = cam.world2cam_r[2]  # the optical axis in W
+    one[7], uv_one[7] = cam.position - 0.01 * axis, INVALID_PX
     mirrored = 2.0 * cam.position - pts
     res = calibrate_tsai_batch(np.stack([pts, one, mirrored]), np.stack([uv, uv_one, uv]),
                                cam.image_size, cam)  # fmt: skip

@@ -21,7 +21,8 @@ import pytest
 from scipy.stats import chi2
 
 from twin.batch.execute import ALL, BatchRun
-from twin.batch.plan import Drive, Fix, Place, Point, record_plan
+from twin.batch.plan import Drive, Fix, Place, PlanSession, Point, record_plan
+from twin.instruments.tilt import tilt_from_orientation
 from twin.scenario import load_scenario
 from twin.scenario.schema import InclinometerConfig, StoppingConfig
 
@@ -93,6 +94,23 @@ def test_without_noise_the_leg_is_exact(leg):
     np.testing.assert_allclose(run.cps.parent.yaw, leg.steps[4].believed[2], atol=1e-9)
 
 
+def test_a_tilted_station_levels_its_shots_with_its_tilt(smoke_plan, leg):
+    # The parent on the smoke room's tilted floor patch (3 arc-minutes): noise-free, its
+    # shots levelled with the station's own tilt fix it exactly where it stands.
+    with PlanSession(smoke_plan.scenario, "paper") as session:
+        while not session.done:
+            session.answer(session.suggested())
+        pose = np.array([3.0, -1.5, 0.0])
+        tilted = session.truth_at(leg.parent, pose)
+    tilt = np.hypot(*tilt_from_orientation(tilted.instrument2world))
+    assert tilt > 5e-4
+    drive = Drive(leg.parent, tilted.pose.copy(), tilted)
+    run = _run(leg, _quiet(leg), steps=[*leg.steps[:4], drive, leg.steps[5]], trials=2)
+    centre, _ = run._instrument(ALL)
+    np.testing.assert_allclose(run.last_estimate.translation, centre, atol=1e-9)
+    np.testing.assert_allclose(run.cps.parent.yaw, tilted.pose[2], atol=1e-9)
+
+
 def test_the_stopping_heading_error_of_every_robot(leg):
     sigma = 0.01
     run = _run(leg, _with(leg, stopping=StoppingConfig(sigma_xy=0.0, sigma_yaw=sigma)))
@@ -120,6 +138,15 @@ def test_the_stopping_position_error_of_every_robot(leg):
             np.testing.assert_array_equal(robot.true[:, 2], step.believed[2])
             if step.robot != leg.parent:  # where its marker put it
                 np.testing.assert_allclose(robot.believed, robot.true, atol=1e-9)
+    # A robot driven again before anything measured it: its localisation's error (where it
+    # stood against where it believed it stood) carries into the next stop, which adds its
+    # own: sqrt(2) sigma.
+    first = leg.steps[0]
+    again = dataclasses.replace(first, believed=first.believed + np.array([0.3, 0.1, 0.0]))
+    run = _run(leg, _with(leg, stopping=StoppingConfig(sigma_xy=sigma, sigma_yaw=0.0)),
+               steps=[first, again])  # fmt: skip
+    moved = run.robots[first.robot].true[:, :2] - again.believed[:2]
+    _assert_sigma(moved, np.sqrt(2.0) * sigma, "a second stop without a fix")
 
 
 def test_the_creep_of_the_standing_children_once_a_leg(leg):

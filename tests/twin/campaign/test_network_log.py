@@ -94,6 +94,7 @@ def _log() -> list[SimpleNamespace]:
         _m(CONTROL_SIGHTING, name="prism", point_level=[1.0, 1.0, 0.0], covariance=COV),
         _point("visit", 2, 4, 5.0),
         _point("visit", 2, 4, 6.0),
+        _point("visit", 2, 4, 7.0),  # beyond the 8 points the calibration used
         _calibration(2, 8, 0.2),
         _placed("child2", [5.0, 1.0, 0.0]),
         _fix(30.0, 0.5, [6, 0, 0], ["child2"]),

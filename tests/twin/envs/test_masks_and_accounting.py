@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 
 import twin.sim  # noqa: F401  (headless rendering)
+from twin.batch.estimators import ParentEstimates
+from twin.batch.execute import transfer_rms
 from twin.batch.plan import Drive
 from twin.envs import CpsCampaignEnv
 from twin.envs.moves import MoveLayout
@@ -230,3 +232,14 @@ def test_the_tables_clock_counts_each_robots_drive_and_the_shots():
         planner.act(action)
         assert planner.time - before == pytest.approx(expected, rel=1e-12, abs=1e-12)
     planner.close()
+
+
+def test_the_transfer_error_is_the_parents_pose_error_carried_to_the_camera():
+    # A camera 3 m east and 4 m north of the instrument: the parent's yaw error d moves it
+    # by d (-4, 3, 0), its position error by itself. With var(yaw) = a, var(x, y, z) =
+    # b, c, e and cov(yaw, x) = p, cov(yaw, y) = q: E|move|^2 = 25 a + b + c + e - 8 p + 6 q.
+    a, b, c, e, p, q = 1e-6, 4e-6, 9e-6, 1e-6, 1.5e-6, -1e-6
+    cov = np.array([[a, p, q, 0.0], [p, b, 0.0, 0.0], [q, 0.0, c, 0.0], [0.0, 0.0, 0.0, e]])
+    parent = ParentEstimates(np.array([0.7]), np.array([[1.0, 2.0, 0.5]]), cov[None])
+    got = transfer_rms(parent, np.array([[4.0, 6.0, 0.5]]))
+    assert got[0] ** 2 == pytest.approx(25 * a + b + c + e - 8 * p + 6 * q, rel=1e-12)

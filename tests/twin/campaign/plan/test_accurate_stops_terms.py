@@ -109,6 +109,11 @@ def test_the_predicted_position_covariance_is_the_calibrations_first_order_respo
     assert 0.2 < np.trace(points_part) / np.trace(want) < 0.8
 
 
+GREEDY_SPEC = TotalStationSpec()
+"""The instrument of the stops' test: the paper's, whose points' errors seen from the
+camera are of the order of the plan's 0.05 px of pixel noise (both weigh the choice)."""
+
+
 def _information(camera, candidates, instrument) -> np.ndarray:
     """(N, 11, 11) each candidate's Fisher information of Tsai's internal parameters: each
     LED it shows with its pixel noise plus its point's error projected (the module's
@@ -118,7 +123,7 @@ def _information(camera, candidates, instrument) -> np.ndarray:
         leds = c.leds_world[c.shown]
         jac = pixel_jacobian(camera, leds)  # (m, 2, 11)
         grad = -jac[..., 8:11]
-        cov = grad @ point_covariance(leds, instrument, SPEC) @ np.swapaxes(grad, 1, 2)
+        cov = grad @ point_covariance(leds, instrument, GREEDY_SPEC) @ np.swapaxes(grad, 1, 2)
         cov = cov + PLAN_PIXEL_PX**2 * np.eye(2)
         out[k] = np.einsum("mri,mrs,msj->ij", jac, np.linalg.inv(cov), jac)
     return out
@@ -128,7 +133,7 @@ def test_the_stops_are_the_seeds_the_greedy_choices_then_the_rest_in_order(smoke
     camera, instrument, candidates = smoke
     candidates = candidates[::3]  # fewer, for the brute force
     points = 20
-    planned, spares = choose_stops(candidates, camera, instrument, SPEC, points)
+    planned, spares = choose_stops(candidates, camera, instrument, GREEDY_SPEC, points)
     index = {id(c): i for i, c in enumerate(candidates)}
     order = [index[id(c)] for c in planned + spares]
     assert sorted(order) == list(range(len(candidates)))  # each candidate once
