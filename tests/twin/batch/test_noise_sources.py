@@ -30,9 +30,10 @@ ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"
 
 TRIALS = 2000
-"""Trials of each test. 2000 draws of one error give a band of about +/-16 % on the
-variance (4.9 standard errors of sqrt(2 / 2000)); 0.8 sigma (0.64 of the variance) and
-1.2 sigma (1.44) stand 11 and 9 of their own standard errors beyond it."""
+"""Trials of each test. 2000 draws of one error give a band of 0.85 to 1.16 on the
+variance (4.9 standard errors of sqrt(2 / 2000) either side); 0.8 sigma (0.64 of the
+variance) and 1.2 sigma (1.44) stand 10.5 and 6.1 of their own standard errors beyond it.
+Most tests draw several errors a trial, which narrows the band further."""
 
 FLAKE = 1e-6
 """Two-sided probability that a correct source falls outside the band."""
