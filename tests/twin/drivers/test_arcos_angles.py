@@ -55,6 +55,8 @@ def test_a_heading_is_the_nearest_unit_of_the_wrapped_angle(rad, units):
         (3072, -math.pi / 2),
         (-3072, math.pi / 2),
         (2048, math.pi),
+        (-2048, math.pi),
+        (6144, math.pi),
         (4096 + 5, 5 * U),
     ],
 )
@@ -68,6 +70,7 @@ def test_a_heading_is_off_by_half_a_unit_at_most(rad):
     off = math.remainder(back - rad, 2 * math.pi)
     assert abs(off) <= 0.5 * U + 1e-12
     assert -2048 <= P.heading_units(rad) <= 2048
+    assert -math.pi < back <= math.pi
 
 
 class _Link:

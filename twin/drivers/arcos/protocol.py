@@ -528,7 +528,8 @@ class PlatformParams:
     def heading_rad(self, units: int) -> float:
         """Heading units -> rad in (-pi, pi]."""
         a = float(units) * self.angle_conv
-        return math.atan2(math.sin(a), math.cos(a))
+        wrapped = math.atan2(math.sin(a), math.cos(a))
+        return math.pi if wrapped <= -math.pi else wrapped  # -pi itself is pi
 
     def heading_units(self, rad: float) -> int:
         """rad -> heading units, the angle wrapped to [-pi, pi)."""
