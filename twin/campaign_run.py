@@ -33,6 +33,7 @@ from twin.hal.recording import Recorder, recorded
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
+from twin.record.run_record import scenario_fields
 from twin.report import write_report
 from twin.report.reading import planned_visits
 from twin.run_cameras import camera_identity
@@ -76,8 +77,8 @@ def run_campaign(
             log.record(
                 META,
                 {
+                    **scenario_fields(sc),
                     **camera_identity(sc),
-                    "scenario_file": sc.source,
                     **meta,
                     "strategy": strategy.name,
                     "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),

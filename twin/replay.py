@@ -12,6 +12,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,12 +29,22 @@ from twin.record import read_log
 from twin.record.mcap_log import LogMessage
 from twin.report import write_report
 from twin.run_cameras import IDENTITY_KEYS
-from twin.scenario import Scenario, ScenarioError, load_scenario
+from twin.scenario import Scenario, load_scenario
+from twin.scenario.digest import scenario_digest
 
 MODELS = ("tsai", "opencv")
 
 REPLAY_OUTPUTS = ("results.json", "cameras", "figures", "report.md")
 """What a replay writes in its folder."""
+
+ASK_SCENARIO = (
+    "give the run's scenario (twin replay --scenario FILE), or replay without the figures "
+    "and report (--no-report)"
+)
+
+
+class ScenarioMismatch(ValueError):
+    """The scenario given or found is not the one the log's run was made from."""
 
 
 def replay_log(
@@ -44,6 +56,8 @@ def replay_log(
     report: bool = True,
     overwrite: bool = False,
     adjust: str | None = "auto",
+    force: bool = False,
+    warn: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Compute a run's results again from its log and write them in ``out_dir``.
 
@@ -52,7 +66,8 @@ def replay_log(
         out_dir: where ``results.json``, ``cameras/``, ``figures/`` and ``report.md`` go.
         model: ``tsai`` (the campaign's own calibrations, as logged) or ``opencv`` (each
             visit's points fitted again in OpenCV's model).
-        scenario: the scenario for the report's figures (default: the file the log names).
+        scenario: the scenario for the report's figures (default: the file the log names,
+            found as :func:`run_scenario_of` finds it).
         report: write the figures and ``report.md`` (needs the scenario).
         overwrite: replace what an earlier replay wrote in ``out_dir``.
         adjust: adjust the whole network (:mod:`twin.campaign.adjusted_results`), a camera
@@ -61,13 +76,18 @@ def replay_log(
             ``auto`` (default): ``shared`` in Tsai's model, none in OpenCV's. With
             the scenario, its pixel noise weighs the pixels; without, each camera's
             calibration residual does.
+        force: use a scenario whose digest is not the one the log records.
+        warn: called with what the caller should be told (a scenario that cannot be
+            checked against the log).
 
     Returns:
         The results (also in ``results.json``).
 
     Raises:
-        ValueError: an unknown model or adjustment, a log that holds no run, or an
-            adjustment asked for with ``model="opencv"`` (it adjusts Tsai's model).
+        ValueError: an unknown model or adjustment, a log that holds no run or that another
+            command than a campaign wrote (``twin check``), the report's scenario not found,
+            or an adjustment asked for with ``model="opencv"`` (it adjusts Tsai's model).
+        ScenarioMismatch: the scenario is not the run's (and not ``force``).
         twin.scenario.ScenarioError: the scenario cannot be read.
     """
     if model not in MODELS:
@@ -87,11 +107,20 @@ def replay_log(
     meta = next((m.data for m in messages if m.topic == META), None)
     if meta is None:
         raise ValueError(f"{log}: no run in this log (no {META} record)")
-    sc = scenario_of(meta, scenario, log) if (report or scenario is not None) else None
-    if sc is None and meta.get("scenario_file"):
-        # The run's own pixel pitch (kappa1 in 1/mm^2), where its scenario can still be read.
-        with contextlib.suppress(ValueError, ScenarioError, OSError):
-            sc = scenario_of(meta, None, log)
+    command = meta.get("command", "run")
+    if command != "run":
+        raise ValueError(
+            f"{log}: a `twin {command}` log; twin replay reads the logs of campaigns "
+            f"(twin run, with or without --rig)"
+            + ("; the check's results are in check.json beside it" if command == "check" else "")
+        )
+    sc = None
+    if report or scenario is not None:
+        sc = run_scenario_of(meta, scenario, log, force=force, warn=warn)
+    elif meta.get("scenario_file") or meta.get("scenario_path"):
+        # The run's own pixel pitch (kappa1 in 1/mm^2), where its scenario can still be found.
+        with contextlib.suppress(ValueError, OSError):
+            sc = run_scenario_of(meta, None, log)
     if model != "tsai":
         messages = refit(messages, model)
     arguments = {"log": str(log), "model": model}
@@ -114,18 +143,103 @@ def replay_log(
     return results
 
 
-def scenario_of(
-    meta: dict[str, Any], scenario: Scenario | str | Path | None, log: str | Path
+def run_scenario_of(
+    meta: dict[str, Any],
+    scenario: Scenario | str | Path | None,
+    log: str | Path,
+    *,
+    force: bool = False,
+    warn: Callable[[str], None] | None = None,
 ) -> Scenario:
-    """The scenario given, or the one the log's run was made from."""
-    if isinstance(scenario, Scenario):
-        return scenario
+    """The scenario of the log's run, as it ran (with the seed and the noise the log's run
+    record ``meta`` names).
+
+    ``scenario`` (a scenario or its file) if given; else the file the run record names,
+    looked for at its recorded absolute path, then (as given to the run) against the log's
+    folder and against the working folder. Its digest
+    (:func:`twin.scenario.digest.scenario_digest`) is checked against the one recorded; a
+    log of an older version records none, and ``warn`` says so.
+
+    Raises:
+        ValueError: no scenario given and none found where the record says (the message
+            says how to go on).
+        ScenarioMismatch: the scenario's digest is not the recorded one, unless ``force``
+            (then ``warn`` says so).
+        twin.scenario.ScenarioError: the scenario cannot be read.
+    """
+    say = warn or (lambda _: None)
+    recorded = meta.get("scenario_digest")
+    run_name = meta.get("scenario") or "?"
     if scenario is not None:
-        return load_scenario(scenario)
-    source = meta.get("scenario_file")
-    if not source:
-        raise ValueError(f"{log}: the log names no scenario file; give one")
-    return load_scenario(source)
+        sc = _as_run(scenario if isinstance(scenario, Scenario) else load_scenario(scenario), meta)
+        where = str(scenario) if not isinstance(scenario, Scenario) else sc.source or sc.name
+        found = [(where, sc)]
+    else:
+        places = _scenario_places(meta, log)
+        if not places:
+            raise ValueError(f"{log}: the log names no scenario file; {ASK_SCENARIO}")
+        found = [(str(p), _as_run(load_scenario(p), meta)) for p in places if p.is_file()]
+        if not found:
+            tried = ", ".join(str(p) for p in places)
+            raise ValueError(
+                f"{log}: its scenario {meta.get('scenario_file') or meta.get('scenario_path')} "
+                f"was not found (looked for {tried}); {ASK_SCENARIO}"
+            )
+    if recorded is None:
+        where, sc = found[0]
+        say(
+            f"{log} records no scenario digest (written by an older version): cannot check "
+            f"that {where} is the run's scenario"
+        )
+        return sc
+    for _, sc in found:
+        if scenario_digest(sc) == recorded:
+            return sc
+    where, sc = found[0]
+    differs = (
+        f"the scenario {where} ({sc.name!r}, digest {scenario_digest(sc)}) is not the run's "
+        f"({run_name!r} from {meta.get('scenario_file') or '?'}, digest {recorded})"
+    )
+    if force:
+        say(f"{differs}; replayed with it all the same (--force)")
+        return sc
+    if scenario is None:
+        raise ScenarioMismatch(
+            f"{log}: {differs}: it changed since the run; {ASK_SCENARIO}, or pass --force to "
+            "use it all the same"
+        )
+    raise ScenarioMismatch(f"{log}: {differs}; pass --force to use it all the same")
+
+
+def _as_run(sc: Scenario, meta: dict[str, Any]) -> Scenario:
+    """``sc`` with the seed and the noise the log's run record names (``twin run --seed``,
+    ``run_scenario(noise=False)``)."""
+    seed = meta.get("seed")
+    if isinstance(seed, int) and not isinstance(seed, bool) and seed != sc.seed:
+        sc = sc.model_copy(update={"seed": seed})
+    if meta.get("noise") is False:
+        sc = sc.without_noise()
+    return sc
+
+
+def _scenario_places(meta: dict[str, Any], log: str | Path) -> list[Path]:
+    """Where the run's scenario may be: its recorded absolute path, then the file as given
+    to the run against the log's folder and against the working folder (each once)."""
+    places = []
+    if meta.get("scenario_path"):
+        places.append(Path(meta["scenario_path"]))
+    given = meta.get("scenario_file")
+    if given:
+        given = Path(given)
+        places += [given] if given.is_absolute() else [Path(log).parent / given, Path.cwd() / given]
+    out: list[Path] = []
+    seen: set[str] = set()
+    for place in places:
+        key = os.path.abspath(place)
+        if key not in seen:
+            seen.add(key)
+            out.append(place)
+    return out
 
 
 def refit(messages: list[LogMessage], model: str) -> list[LogMessage]:

@@ -19,7 +19,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Read a run's log.mcap (whole, or cut short by a kill) and write results.json, "
             "cameras/, figures/ and report.md again, as the run did. With --model opencv "
             "each visit is calibrated again, from the same points, in OpenCV's model. The "
-            "whole campaign is adjusted at once as twin run does (--adjust). Exit "
+            "whole campaign is adjusted at once as twin run does (--adjust). The run's "
+            "scenario is the file its log names, looked for where it was, beside the log "
+            "and in the working folder, and checked against the digest the log records. "
+            "Reads the logs of campaigns (twin run), not those of twin check. Exit "
             "code 0; 1 when the log holds no calibration; 2 for bad input."
         ),
     )
@@ -36,7 +39,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--scenario",
         type=Path,
-        help="scenario for the figures (default: the file the log names)",
+        help="the run's scenario, for the figures (default: the file the log names); one "
+        "whose digest is not the log's is refused",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="use a scenario whose digest is not the one the log records",
     )
     p.add_argument(
         "--adjust",
@@ -71,9 +80,11 @@ def run(args: argparse.Namespace) -> int:
             report=not args.no_report,
             overwrite=args.overwrite,
             adjust={None: "auto", "none": None}.get(args.adjust, args.adjust),
+            force=args.force,
+            warn=lambda text: console.print(f"warning: {text}", markup=False),
         )
     except (ValueError, ScenarioError) as exc:
-        console.print(f"[red]error:[/red] {exc}", highlight=False)
+        console.print(f"error: {exc}", markup=False)
         return 2
     print_results(results, console)
     console.print(f"written in {out}")
