@@ -40,6 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--visits",
+        type=visit_order,
+        metavar="CAM,CAM,...",
         help="cameras in the order to calibrate them, comma-separated; a camera may come "
         "twice, e.g. cam1,cam2,cam3,cam2,cam1 (default: each once, shortest tour)",
     )
@@ -71,6 +73,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def visit_order(text: str) -> list[str]:
+    """The cameras of ``--visits``, comma-separated (blanks around a name and empty entries,
+    as from a trailing comma, are left out).
+
+    Raises:
+        argparse.ArgumentTypeError: no camera named.
+    """
+    names = [name.strip() for name in text.split(",")]
+    names = [name for name in names if name]
+    if not names:
+        raise argparse.ArgumentTypeError(
+            f"expected camera names separated by commas, e.g. cam1,cam2,cam1; got {text!r}"
+        )
+    return names
+
+
 def run(args: argparse.Namespace) -> int:
     """Plan; exit code 0, 1 when one geometric run of the plan does not calibrate every
     camera (the plan is written), 2 for bad input."""
@@ -82,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     if args.start is not None:
         x, y, yaw = args.start
         start = (x, y, math.radians(yaw))
-    visits = None if args.visits is None else [v.strip() for v in args.visits.split(",") if v]
+    visits = args.visits
     t0 = time.perf_counter()
     try:
         written = write_site(

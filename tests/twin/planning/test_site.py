@@ -390,3 +390,23 @@ def test_a_camera_over_floor_the_map_does_not_show_is_named(tmp_path, capsys):
     bounds = [float(v.rstrip(",")) for v in found.groups()]
     assert bounds == pytest.approx([6.0, 7.0, 5.0, 6.0], abs=0.1)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("visits", ["", ",", " , ,"])
+def test_a_visit_order_without_a_camera_is_refused_by_name(visits, tmp_path, capsys):
+    grid = write_grid(tmp_path, [PILLAR])
+    cams = write_cameras(tmp_path)
+    out = tmp_path / "site.toml"
+    with pytest.raises(SystemExit) as exit_:
+        main(["site", str(grid), "--cameras", str(cams), "--out", str(out), "--visits", visits])
+    assert exit_.value.code == 2
+    said = capsys.readouterr().err
+    assert "argument --visits: expected camera names separated by commas" in said
+    assert repr(visits) in said
+    assert not out.exists()
+
+
+def test_empty_entries_of_a_visit_order_are_left_out():
+    from twin.cli.site import visit_order
+
+    assert visit_order(" cam1, ,cam2,cam1,") == ["cam1", "cam2", "cam1"]
