@@ -51,7 +51,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--episodes", type=arguments.positive_int, default=20, help="episodes per policy (20)"
     )
     p.add_argument(
-        "--seed", type=arguments.seed, default=0, help="episode k's seed is SEED + k (default: 0)"
+        "--seed",
+        type=arguments.seed,
+        default=0,
+        help="episode k's seed is SEED + k, every one from 0 to 2^63 - 1 (default: 0)",
     )
     p.add_argument(
         "--budget",
@@ -77,6 +80,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run; exit code 0, or 2 for bad input."""
     console = Console(highlight=False, soft_wrap=True, width=max(110, Console().width))
+    last = args.seed + args.episodes - 1
+    if last > arguments.SEED_MAX:
+        console.print(
+            f"error: --seed {args.seed} with --episodes {args.episodes}: the last episode's "
+            f"seed {last} is above 2^63 - 1; expected --seed from 0 to "
+            f"{arguments.SEED_MAX - args.episodes + 1}",
+            markup=False,
+        )
+        return 2
     scenario = None
     if args.scenario != "random":
         scenario = load_or_report(Path(args.scenario), console)

@@ -76,3 +76,31 @@ def test_the_stands_planner_plays_the_same_policies(tmp_path, capsys):
     rows = list(csv.DictReader((out / "episodes.csv").open()))
     assert [r["policy"] for r in rows] == ["paper"] * 2
     assert all(float(r["error_cam1_mm"]) > 0 for r in rows)
+
+
+@pytest.mark.parametrize(("seed", "episodes"), [(2**63 - 1, 2), (2**63 - 2, 3), (2**63 - 20, 22)])
+def test_an_episode_seed_beyond_the_range_is_refused(seed, episodes, tmp_path, capsys):
+    out = tmp_path / "s"
+    argv = ["strategies", str(SMOKE), "--seed", str(seed), "--episodes", str(episodes)]
+    assert main([*argv, "--out", str(out)]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"--seed {seed} with --episodes {episodes}" in said
+    assert f"the last episode's seed {seed + episodes - 1} is above 2^63 - 1" in said
+    assert f"expected --seed from 0 to {2**63 - episodes}" in said
+    assert not out.exists()
+
+
+def test_the_last_seed_of_the_range_is_played(tmp_path, monkeypatch):
+    import twin.envs.comparison
+
+    class Played(Exception):
+        pass
+
+    def play(scenario, policies, episodes, seed, **kwargs):
+        raise Played(seed + episodes - 1)
+
+    monkeypatch.setattr(twin.envs.comparison, "play_episodes", play)
+    argv = ["strategies", str(SMOKE), "--seed", str(2**63 - 2), "--episodes", "2"]
+    with pytest.raises(Played) as played:
+        main([*argv, "--out", str(tmp_path / "s")])
+    assert played.value.args == (2**63 - 1,)
