@@ -11,6 +11,7 @@ from rich.table import Table
 
 from twin.cli import arguments
 from twin.cli.scene import load_or_report
+from twin.outputs import check_file_target
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,10 +39,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=arguments.seed, help="root seed (default: the scenario's)")
     p.add_argument(
         "--time-scale",
-        type=arguments.positive_float,
+        type=time_scale,
         default=10.0,
         metavar="X",
-        help="emulated seconds per wall second; the rig file tells the drivers (default: 10)",
+        help="emulated seconds per wall second, 1 (real time) to 1000; the rig file tells "
+        "the drivers (default: 10)",
     )
     p.add_argument(
         "--links",
@@ -59,18 +61,38 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="stop after S wall seconds (default: run until stopped)",
     )
     p.add_argument(
-        "--rig-out", type=Path, required=True, metavar="RIG.toml", help="rig file to write"
+        "--rig-out",
+        type=Path,
+        required=True,
+        metavar="RIG.toml",
+        help="rig file to write (TOML; YAML for .yaml), and RIG.truth.json beside it",
     )
     p.set_defaults(func=run)
 
 
+def time_scale(text: str) -> float:
+    """``--time-scale``: a number from :data:`twin.emulators.emulation.MIN_TIME_SCALE` to
+    :data:`~twin.emulators.emulation.MAX_TIME_SCALE`."""
+    from twin.emulators.emulation import check_time_scale
+
+    value = arguments.finite_float(text)
+    try:
+        return check_time_scale(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("time scale: ")) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Serve until stopped; exit code 0, 2 for bad input."""
+    from twin.emulators.emulation import start_emulation, truth_file
+
     console = Console(highlight=False, soft_wrap=True)
+    # Both files are checked before the work; a file the reader refuses is refused then.
+    check_file_target(args.rig_out, "--rig-out")
+    check_file_target(truth_file(args.rig_out), "--rig-out's truth file")
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
-    from twin.emulators.emulation import start_emulation
 
     try:
         emulation = start_emulation(
@@ -85,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         console.print(f"[red]error:[/red] {exc}", highlight=False)
         return 2
     with emulation:
-        rig = emulation.write_rig_file(args.rig_out)
+        rig = emulation.write_rig_file(args.rig_out, "--rig-out")
         table = Table(title=f"{sc.name}: emulated devices ({args.fidelity}, x{args.time_scale:g})")
         table.add_column("device")
         table.add_column("protocol")

@@ -39,13 +39,21 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import tomli_w
+import yaml
 from pydantic import Field
 
 from twin.scenario.errors import ScenarioError, ScenarioIssue
 from twin.scenario.loader import read_mapping, validate_model
 from twin.scenario.schema import Frozen, Name, Scenario
 
-Seconds = Annotated[float, Field(gt=0.0, le=86400.0)]
+MAX_SECONDS = 86400.0
+"""Longest time a rig file gives (a timeout, a drive), rig seconds: a day."""
+
+MAX_TIME_SCALE = 1000.0
+"""Fastest rig a rig file describes, rig seconds per wall second."""
+
+Seconds = Annotated[float, Field(gt=0.0, le=MAX_SECONDS)]
 Baud = Annotated[int, Field(gt=0, le=4_000_000)]
 Port = Annotated[str, Field(min_length=1, max_length=400)]
 
@@ -162,7 +170,7 @@ class RigFile(Frozen):
     """
 
     name: str = "rig"
-    time_scale: Annotated[float, Field(gt=0.0, le=1000.0)] = 1.0
+    time_scale: Annotated[float, Field(gt=0.0, le=MAX_TIME_SCALE)] = 1.0
     total_station: TotalStationDevice
     robots: Annotated[tuple[RobotDevice, ...], Field(min_length=3)]
     cameras: tuple[CameraDevice, ...] = ()
@@ -185,6 +193,46 @@ def load_rig_file(path: str | Path) -> RigFile:
     """
     path = Path(path)
     return rig_file_from_dict(read_mapping(path, RigFileError), file=path)
+
+
+def write_rig_file(
+    path: str | Path, rig: Mapping[str, Any], name: str | Path | None = None
+) -> RigFile:
+    """Write ``rig`` at ``path`` (TOML; YAML for ``.yaml``/``.yml``, as :func:`load_rig_file`
+    reads it) and read it back with :func:`load_rig_file`'s own checks: a rig file the
+    project writes is one its readers accept.
+
+    Args:
+        path: the file to write (for an atomic write, a temporary file whose name ends as
+            the rig file's does). rig: the rig file's content.
+        name: the rig file's name for the messages (default: ``path``).
+
+    Returns:
+        The rig file as read back.
+
+    Raises:
+        RigFileError: the content read back is not a valid rig file (naming ``name``, each
+            key, its value and what was expected); ``path`` then holds the refused file,
+            for the caller to remove.
+    """
+    path = Path(path)
+    yaml_file = path.suffix.lower() in (".yaml", ".yml")
+    text = yaml.safe_dump(_plain(rig), sort_keys=False) if yaml_file else tomli_w.dumps(rig)
+    path.write_text(text, encoding="utf-8")
+    try:
+        raw = read_mapping(path, RigFileError)
+    except RigFileError as exc:
+        raise RigFileError(name or path, exc.issues) from None
+    return rig_file_from_dict(raw, file=name or path)
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with its tuples as lists (what ``yaml.safe_dump`` writes)."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
 
 
 def rig_file_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> RigFile:

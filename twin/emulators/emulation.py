@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -36,16 +37,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import tomli_w
 
 from calib.io.camera_files import camera_to_dict
 from twin.closing import Closing
+from twin.drivers import rig_file as rig_files
 from twin.drivers.clock import WallClock
 from twin.emulators.links import Link, PtyLink, TcpLink
 from twin.hal.devices import MarkerLeds
 from twin.hal.readings import LedSwitch
 from twin.hal.wrappers import MarkerLedsWrapper
-from twin.outputs import write_text_atomic
+from twin.outputs import OutputFiles
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.limits import check_seed
 
@@ -71,6 +72,43 @@ Their timeouts are in rig seconds (2 s without a robot's packet, 10 s for an ins
 reply); at a time scale of 30 those are 67 and 333 ms of wall time, which a busy host (the
 emulators and the campaign share its cores, and a render holds the world for tens of
 milliseconds) can miss without any device being lost."""
+
+MIN_TIME_SCALE = 1.0
+"""Slowest emulated world, rig seconds per wall second: real time, as on real hardware. The
+emulators exist to run the drivers and the campaign as fast as the host allows; a slower
+world stretches every period of the emulated devices in wall time (a robot's 0.1 s packet,
+its 2 s watchdog) past the hardware's, and at the extreme (1e-320) past any finite wait."""
+
+MAX_TIME_SCALE = min(
+    rig_files.MAX_TIME_SCALE,
+    rig_files.MAX_SECONDS / CAMERA_TIMEOUT_WALL,
+    rig_files.MAX_SECONDS / LINK_TIMEOUT_WALL,
+)
+"""Fastest emulated world: the fastest whose rig file the rig reader accepts (its
+``time_scale`` and the timeouts :meth:`Emulation.rig_file` derives from it, at most
+:data:`twin.drivers.rig_file.MAX_SECONDS`)."""
+
+
+def check_time_scale(time_scale: float) -> float:
+    """``time_scale`` as a float if it lies in [:data:`MIN_TIME_SCALE`,
+    :data:`MAX_TIME_SCALE`].
+
+    Raises:
+        ValueError: naming the value and the range.
+    """
+    value = float(time_scale)
+    if not (math.isfinite(value) and MIN_TIME_SCALE <= value <= MAX_TIME_SCALE):
+        raise ValueError(
+            f"time scale: expected {MIN_TIME_SCALE:g} to {MAX_TIME_SCALE:g} rig seconds per "
+            f"wall second, got {time_scale!r}"
+        )
+    return value
+
+
+def truth_file(rig_path: str | Path) -> Path:
+    """Where :meth:`Emulation.write_rig_file` writes the truth beside the rig file."""
+    rig_path = Path(rig_path)
+    return rig_path.with_name(rig_path.stem + ".truth.json")
 
 
 @dataclass
@@ -150,13 +188,22 @@ class Emulation(Closing):
             },
         }
 
-    def write_rig_file(self, path: str | Path) -> Path:
-        """Write the rig file at ``path`` and the truth (``truth.json``) beside it."""
+    def write_rig_file(self, path: str | Path, option: str = "rig file") -> Path:
+        """Write the rig file at ``path`` (TOML; YAML for ``.yaml``) and the truth
+        (:func:`truth_file`) beside it, both or neither. The rig file is read back with
+        the rig reader before it is put in place.
+
+        Raises:
+            twin.outputs.OutputError: naming ``option`` and the path: a file that cannot be
+                written, or a rig file the reader refuses (nothing is written then).
+        """
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        truth = path.with_name(path.stem + ".truth.json")
-        write_text_atomic(truth, json.dumps({"cameras": self.truth}, indent=2) + "\n")
-        write_text_atomic(path, tomli_w.dumps(self.rig_file(truth.name)))
+        truth = truth_file(path)
+        text = json.dumps({"cameras": self.truth}, indent=2) + "\n"
+        rig = self.rig_file(truth.name)
+        with OutputFiles() as files:
+            files.stage(truth, option, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+            files.stage(path, option, lambda tmp: rig_files.write_rig_file(tmp, rig, path))
         return path
 
     def close(self) -> None:
@@ -236,7 +283,8 @@ def start_emulation(
         fidelity: ``geometric`` (LEDs drawn as spots at their projected places) or
             ``render`` (rendered camera images).
         seed: the root seed (default: the scenario's).
-        time_scale: rig seconds per wall second.
+        time_scale: rig seconds per wall second, :data:`MIN_TIME_SCALE` to
+            :data:`MAX_TIME_SCALE`.
         links: the robots' links: ``tcp`` (localhost ports) or ``pty`` (pseudo-terminals).
         camera_fps: frames per wall second each camera serves.
         jpeg_quality: the streams' JPEG quality (default: the camera emulator's).
@@ -258,6 +306,7 @@ def start_emulation(
         raise ValueError(f"fidelity must be one of {FIDELITIES}, got {fidelity!r}")
     if links not in LINKS:
         raise ValueError(f"links must be one of {LINKS}, got {links!r}")
+    time_scale = check_time_scale(time_scale)
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if seed is not None:
         sc = sc.model_copy(update={"seed": check_seed(seed)})

@@ -135,3 +135,37 @@ def test_emulate_refuses_a_bad_scenario(tmp_path, capsys):
     bad.write_text("name = 3\n")
     assert main(["emulate", str(bad), "--rig-out", str(tmp_path / "rig.toml")]) == 2
     assert not (tmp_path / "rig.toml").exists()
+
+
+@pytest.mark.parametrize(
+    ("rig_out", "expected"),
+    [
+        ("emu", "--rig-out emu: is a folder; expected the name of a file"),
+        ("a_file/rig.toml", "--rig-out a_file/rig.toml: lies under the file a_file"),
+        ("rig.toml", "--rig-out's truth file rig.truth.json: is a folder"),
+    ],
+)
+def test_emulate_refuses_a_rig_out_it_cannot_write(
+    rig_out, expected, tmp_path, monkeypatch, capsys
+):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "emu").mkdir()
+    (tmp_path / "a_file").write_text("the user's")
+    (tmp_path / "rig.truth.json").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["emulate", str(SMOKE), "--rig-out", rig_out, "--duration", "1"]) == 2
+    said = " ".join(capsys.readouterr().err.split())
+    assert expected in said
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert not any((tmp_path / "emu").iterdir())
+
+
+@pytest.mark.parametrize("value", ["1e9", "1001", "0.5", "0", "nan", "inf", "fast"])
+def test_emulate_refuses_a_time_scale_out_of_range(value, tmp_path, capsys):
+    rig = tmp_path / "rig.toml"
+    with pytest.raises(SystemExit) as exit_:
+        main(["emulate", str(SMOKE), "--rig-out", str(rig), "--time-scale", value])
+    assert exit_.value.code == 2
+    said = capsys.readouterr().err
+    assert "argument --time-scale: expected" in said
+    assert not rig.exists()

@@ -7,7 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from twin.drivers.rig_file import RigFileError, check_fits, load_rig_file, rig_file_from_dict
+from twin.drivers.rig_file import (
+    RigFileError,
+    check_fits,
+    load_rig_file,
+    rig_file_from_dict,
+    write_rig_file,
+)
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -89,3 +95,23 @@ def test_a_rig_without_a_device_the_scenario_needs_is_refused() -> None:
     assert "no device for camera 'cam3'" in text
     assert "robots[1].led_bits" in text
     assert "4 bits (the marker has 4 LEDs)" in text
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".yaml"])
+def test_a_written_rig_file_reads_back_as_written(suffix: str, tmp_path: Path) -> None:
+    path = tmp_path / f"rig{suffix}"
+    written = write_rig_file(path, _raw())
+    assert load_rig_file(path).model_dump(exclude={"source"}) == written.model_dump(
+        exclude={"source"}
+    )
+    assert written == rig_file_from_dict(_raw(), file=path)
+
+
+def test_a_rig_file_the_reader_refuses_is_named_by_its_own_name(tmp_path: Path) -> None:
+    raw = _raw()
+    raw["robots"][0]["timeout_s"] = 2.5e9
+    with pytest.raises(RigFileError) as caught:
+        write_rig_file(tmp_path / ".tmp-rig.toml", raw, name="rig.toml")
+    text = str(caught.value)
+    assert text.startswith("rig.toml:")
+    assert "robots[0].timeout_s" in text
