@@ -12,6 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from twin.cli import arguments
+from twin.outputs import check_file_target
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -96,6 +97,9 @@ def run(args: argparse.Namespace) -> int:
     from twin.planning.site_file import write_site
 
     console = Console(highlight=False, soft_wrap=True)
+    # The scenario and its figure beside it, checked before the plan is made.
+    check_file_target(args.out, "--out")
+    check_file_target(args.out.with_suffix(".plan.png"), "--out's figure")
     start = None
     if args.start is not None:
         x, y, yaw = args.start

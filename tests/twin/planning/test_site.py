@@ -410,3 +410,26 @@ def test_empty_entries_of_a_visit_order_are_left_out():
     from twin.cli.site import visit_order
 
     assert visit_order(" cam1, ,cam2,cam1,") == ["cam1", "cam2", "cam1"]
+
+
+@pytest.mark.parametrize(
+    ("out", "expected"),
+    [
+        ("a_file/site.toml", "--out a_file/site.toml: lies under the file a_file"),
+        ("folder", "--out folder: is a folder; expected the name of a file"),
+        ("site.toml", "--out's figure site.plan.png: is a folder"),
+    ],
+)
+def test_an_output_that_cannot_be_written_is_refused_before_planning(
+    out, expected, tmp_path, monkeypatch, capsys
+):
+    grid = write_grid(tmp_path, [PILLAR])
+    cams = write_cameras(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("the user's")
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "site.plan.png").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", out, "--no-predict"]) == 2
+    assert expected in " ".join(capsys.readouterr().err.split())
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
