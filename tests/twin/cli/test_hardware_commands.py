@@ -112,8 +112,9 @@ def test_a_device_that_cannot_be_opened_is_named(tmp_path, capsys):
     code = main(["run", str(SMOKE), "--rig", str(rig), "--out", str(tmp_path / "o")])
     assert code == 2
     out = capsys.readouterr().out
-    assert "total station at" in out
-    assert "[/x]no-such-port" in out
+    # The device, its port and its protocol.
+    assert f"total_station on {tmp_path / '[/x]no-such-port'} (GeoCOM): cannot open" in out
+    assert "DeviceLostError" not in out
 
 
 def test_devices_shows_what_a_device_said_as_text(tmp_path, capsys):
