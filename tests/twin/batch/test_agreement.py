@@ -29,6 +29,7 @@ def test_batch_and_geometric_give_the_same_rms_camera_error(tmp_path):
     # The paper's stops, where every LED of a stop shows (the stops chosen for accuracy:
     # the next test).
     smoke = with_values(load_scenario(SMOKE), {"campaign.strategy": "paper"})
+    # Two worker processes: the longest test of the suite, halved.
     kwargs = {"master_seed": 2026, "workers": 2}
     geometric = run_montecarlo(smoke, tmp_path / "g", 280, fidelity="geometric", **kwargs)
     batch = run_montecarlo(smoke, tmp_path / "b", 3000, fidelity="batch", **kwargs)
@@ -50,7 +51,7 @@ def test_batch_and_geometric_agree_with_accuracy_stops(tmp_path):
     # asserted below 8.75 %), and the band is four of those, 1 +- 0.35.
     values = {"campaign.data_stops": "accuracy", "campaign.reference_cameras": []}
     smoke = with_values(load_scenario(SMOKE), values)
-    kwargs = {"master_seed": 2026, "workers": 2}
+    kwargs = {"master_seed": 2026}
     geometric = run_montecarlo(smoke, tmp_path / "g", 60, fidelity="geometric", **kwargs)
     batch = run_montecarlo(smoke, tmp_path / "b", 2000, fidelity="batch", **kwargs)
     r = rms_ratio(errors_by_trial(geometric), errors_by_trial(batch))
@@ -77,7 +78,7 @@ def test_the_prediction_matches_the_batch_monte_carlo(tmp_path):
     # 0.64 / sqrt(2000) = 1.4 % (one standard deviation, measured tails), so the prediction
     # (frame transfer, pixel noise, and the LED points' shared errors) must land within
     # 15 %, ten of those. Without the points' shared errors it falls short by a factor 6.
-    rows = run_montecarlo(load_scenario(SMOKE), tmp_path, 2000, master_seed=7, workers=2)
+    rows = run_montecarlo(load_scenario(SMOKE), tmp_path, 2000, master_seed=7)
     e = np.array([r["position_error_mm"] for r in rows])
     transfer = np.array([r["predicted_transfer_rms_mm"] for r in rows])
     own = np.array([r["predicted_calibration_rms_mm"] for r in rows])
