@@ -32,10 +32,12 @@ $(VENV)/.stamp-dev: pyproject.toml
 run: $(VENV)/.stamp-run gl-libs
 	$(VENV)/bin/twin run scenarios/paper_hall.toml --fidelity render --strategy paper --out out/paper_hall --overwrite
 
+# Two workers; a worker left without tests takes half of the other's queue (worksteal), so
+# that neither stands idle at the end while the other works through its last long tests.
 test: $(VENV)/.stamp-dev gl-libs
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(PY) -m pytest -n 2 -q
+	$(PY) -m pytest -n 2 --dist worksteal -q
 
 lint: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check .
