@@ -104,7 +104,7 @@ class Driving:
                 pose=handle.pose(self.data),
             )
         self._wheels = {n: h.wheel_angles(self.data) for n, h in self.robots.items()}
-        self._held: dict[str, NDArray[np.float64]] = {}  # wheel angles held at rest, by robot
+        self._held: dict[str, tuple[float, float]] = {}  # (left, right) wheel angles held, rad
         self._controllers: dict[str, DriveController] = {}
         self._pose_source: dict[str, str] = {}
         self._last_contact: dict[tuple[str, int], int] = {}
@@ -226,10 +226,9 @@ class Driving:
         robot stopped (one command per side, as the motor controller drives them: holding
         the wheels of one side each to its own angle would set them against each other
         through the floor, and a skid-steered robot would slowly turn)."""
-        angles = np.array(h.wheel_angles(self.data))
-        held = self._held.setdefault(h.name, angles)
-        left, right = -HOLD_GAIN * (angles - held)
-        self._set_ctrl(h, float(left), float(right))
+        left, right = h.wheel_angles(self.data)
+        held_l, held_r = self._held.setdefault(h.name, (left, right))
+        self._set_ctrl(h, -HOLD_GAIN * (left - held_l), -HOLD_GAIN * (right - held_r))
 
     def _set_ctrl(self, h: RobotHandle, left: float, right: float) -> None:
         for a in h.left_act:

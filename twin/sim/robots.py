@@ -155,8 +155,9 @@ class RobotHandle:
 
     def wheel_angles(self, data: mujoco.MjData) -> tuple[float, float]:
         """Mean (left, right) wheel angles, rad."""
-        left = float(np.mean([data.qpos[i] for i in self.left_qpos]))
-        right = float(np.mean([data.qpos[i] for i in self.right_qpos]))
+        q = data.qpos
+        left = sum(float(q[i]) for i in self.left_qpos) / len(self.left_qpos)
+        right = sum(float(q[i]) for i in self.right_qpos) / len(self.right_qpos)
         return left, right
 
 
