@@ -57,7 +57,6 @@ def test_the_layout_numbers_its_moves_as_documented():
         (12, (13, 17), 13, "calibrate refused: the first go_to"),
         (16, (12, 17), 12, "return_start refused: calibrate first"),
         (13, (17,), 17, "only end"),
-        (-1, (14, 15, 16), 14, "outside the space: the first allowed of the moves between travels"),
         (14, (7, 2), 2, "a move between travels where only legs are allowed: the first leg"),
     ],
 )
@@ -65,6 +64,12 @@ def test_the_fallback_takes_the_nearest_allowed_move_in_the_documented_order(
     action, allowed, taken, why
 ):
     assert LAYOUT.fallback(action, _mask(*allowed)) == taken, why
+
+
+@pytest.mark.parametrize("action", [-1, LAYOUT.size])
+def test_an_action_outside_the_space_has_no_fallback(action):
+    with pytest.raises(ValueError, match=f"action {action} is outside the action space"):
+        LAYOUT.fallback(action, _mask(14, 15, 16))
 
 
 def test_the_moves_between_travels_are_the_budgets_and_the_places():
