@@ -310,6 +310,9 @@ def test_drives_beyond_the_campaign_bound_end_it_with_no_progress():
 corner = st.tuples(st.floats(-1.3, 5.5), st.floats(-2.3, 2.3))
 
 
+# A random route may give a visit few or nearly coplanar points: the calibration says so,
+# which is not what this property is about.
+@pytest.mark.filterwarnings("ignore::calib.checks.DegenerateGeometryWarning")
 @settings(
     max_examples=25,
     deadline=None,
