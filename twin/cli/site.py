@@ -13,6 +13,7 @@ from rich.table import Table
 
 from twin.cli import arguments
 from twin.outputs import check_file_target
+from twin.scenario.limits import SMALLEST_SIZE
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -49,10 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--return-to-start", action="store_true", help="end the route back at the start")
     p.add_argument(
         "--resolution",
-        type=arguments.positive_float,
+        type=grid_resolution,
         default=0.1,
         metavar="M",
-        help="grid the map's blocked floor is laid on as boxes, m (default: 0.1)",
+        help=f"grid the map's blocked floor is laid on as boxes, {SMALLEST_SIZE:g} to "
+        f"{MAX_RESOLUTION:g} m (default: 0.1)",
     )
     p.add_argument(
         "--data-stops",
@@ -72,6 +74,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="SITE.toml", help="scenario to write")
     arguments.add_overwrite(p, file=True)
     p.set_defaults(func=run)
+
+
+MAX_RESOLUTION = 1.0
+"""Coarsest grid of ``--resolution``, m: a coarser one closes doorways (the robots are half a
+metre wide). The finest is the smallest obstacle a scenario holds
+(:data:`twin.scenario.limits.SMALLEST_SIZE`); a grid of nanometres would not fit in memory."""
+
+
+def grid_resolution(text: str) -> float:
+    """``--resolution``: a number of metres from SMALLEST_SIZE to :data:`MAX_RESOLUTION`."""
+    value = arguments.finite_float(text)
+    if not SMALLEST_SIZE <= value <= MAX_RESOLUTION:
+        raise argparse.ArgumentTypeError(
+            f"expected {SMALLEST_SIZE:g} to {MAX_RESOLUTION:g} m, got {text}"
+        )
+    return value
 
 
 def visit_order(text: str) -> list[str]:

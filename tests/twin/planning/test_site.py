@@ -433,3 +433,17 @@ def test_an_output_that_cannot_be_written_is_refused_before_planning(
     assert main(["site", str(grid), "--cameras", str(cams), "--out", out, "--no-predict"]) == 2
     assert expected in " ".join(capsys.readouterr().err.split())
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("resolution", ["1e-320", "1e-9", "0.009", "1.5", "1e308", "0", "nan"])
+def test_a_grid_out_of_range_is_refused_with_the_range(resolution, tmp_path, capsys):
+    out = tmp_path / "site.toml"
+    argv = ["site", str(tmp_path / "map.yaml"), "--cameras", str(tmp_path / "c.yaml")]
+    with pytest.raises(SystemExit) as exit_:
+        main([*argv, "--out", str(out), "--resolution", resolution])
+    assert exit_.value.code == 2
+    said = capsys.readouterr().err
+    assert "argument --resolution: expected" in said
+    if resolution != "nan":
+        assert "expected 0.01 to 1 m" in said
+    assert not out.exists()
