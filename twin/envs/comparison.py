@@ -214,10 +214,13 @@ def tradeoff_figure(episodes: Sequence[Episode], path: Path, title: str) -> Path
             edgecolor="black",
             zorder=5,
         )
-    ax.set_yscale("log")
     ax.set_xlabel("parent's travel [m]")
     ax.set_ylabel("mean world-frame camera error of an episode [mm]")
     ax.set_title(title)
-    ax.grid(True, which="both", color="0.9")
-    ax.legend(title="policy (episodes); star: medians", fontsize=8)
+    if ax.collections:
+        ax.set_yscale("log")
+        ax.grid(True, which="both", color="0.9")
+        ax.legend(title="policy (episodes); star: medians", fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no episode calibrated a camera", ha="center", transform=ax.transAxes)
     return save_figure(fig, path)
