@@ -196,9 +196,14 @@ class SwitchingSequence:
         return int(led)
 
 
+MAX_LEDS = 64
+"""The most LEDs a switching sequence codes: far more than a marker carries (the paper's has
+four), and few enough that a sequence's frames stay a short burst."""
+
+
 def _check_n_leds(n_leds: int) -> int:
-    if int(n_leds) != n_leds or n_leds < 1:
-        raise ValueError(f"n_leds must be a positive integer, got {n_leds!r}")
+    if int(n_leds) != n_leds or not 1 <= n_leds <= MAX_LEDS:
+        raise ValueError(f"n_leds must be an integer from 1 to {MAX_LEDS}, got {n_leds!r}")
     return int(n_leds)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from typing import Any
 
 from twin.scenario.limits import MAX_SEED
@@ -34,6 +35,18 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
+
+
+def int_from_1_to(most: int, what: str) -> Callable[[str], int]:
+    """An argument type: a whole number from 1 to ``most`` (``what`` says why the top)."""
+
+    def convert(text: str) -> int:
+        value = positive_int(text)
+        if value > most:
+            raise argparse.ArgumentTypeError(f"expected 1 to {most} ({what}), got {value}")
+        return value
+
+    return convert
 
 
 def positive_float(text: str) -> float:

@@ -26,6 +26,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from calib.detection import DetectorConfig, LedDetections, SwitchingSequence, detect_leds
+from calib.detection.sequence import MAX_LEDS
 from twin.cli import arguments
 from twin.cli.scene import load_or_report
 from twin.outputs import check_folder, claim_folder, write_text_atomic
@@ -62,7 +63,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(both with a dark frame first and last); default binary",
     )
     p.add_argument(
-        "--leds", type=arguments.positive_int, default=4, help="number of LEDs (default 4)"
+        "--leds",
+        type=arguments.int_from_1_to(MAX_LEDS, "the most a switching sequence codes"),
+        default=4,
+        help=f"number of LEDs, 1 to {MAX_LEDS} (default 4)",
     )
     p.add_argument(
         "--led-line",

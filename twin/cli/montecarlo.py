@@ -21,6 +21,10 @@ from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED, interruption_reason
 from twin.outputs import check_folder
 
+MAX_WORKERS = 4096
+"""The most ``--workers``: more processes than a machine runs, or CPUs than a Ray cluster
+lends one run (a process pool's count must also fit a C int)."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``montecarlo`` subcommand."""
@@ -72,9 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--workers",
-        type=arguments.positive_int,
+        type=arguments.int_from_1_to(MAX_WORKERS, "processes or CPUs"),
         default=1,
-        help="processes (local) or Ray CPUs (default 1)",
+        help=f"processes (local) or Ray CPUs, 1 to {MAX_WORKERS} (default 1)",
     )
     p.add_argument(
         "--engine",

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calib.detection import SwitchingSequence
+from calib.detection.sequence import MAX_LEDS
 
 
 def test_one_at_a_time_is_dark_each_led_dark() -> None:
@@ -71,11 +72,16 @@ def test_invalid_patterns(pattern, message: str) -> None:
         SwitchingSequence(np.asarray(pattern))
 
 
-@pytest.mark.parametrize("n", [0, -1, 2.5])
-def test_constructors_need_a_positive_integer(n) -> None:
+@pytest.mark.parametrize("n", [0, -1, 2.5, MAX_LEDS + 1, 1000])
+def test_constructors_need_an_integer_from_1_to_the_most(n) -> None:
     for make in (SwitchingSequence.one_at_a_time, SwitchingSequence.binary):
-        with pytest.raises(ValueError, match="n_leds must be a positive integer"):
+        with pytest.raises(ValueError, match=f"n_leds must be an integer from 1 to {MAX_LEDS}"):
             make(n)
+
+
+def test_the_most_leds_make_a_sequence_at_once() -> None:
+    for make in (SwitchingSequence.one_at_a_time, SwitchingSequence.binary):
+        assert make(MAX_LEDS).n_leds == MAX_LEDS
 
 
 def test_led_index_is_checked() -> None:

@@ -111,3 +111,23 @@ def test_render_refuses_an_image_name_that_is_not_png(tmp_path, capsys):
     out = tmp_path / "view.jpg"
     _refused([*COMMANDS["render"], str(out)], capsys, "--out", "give a .png file")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (
+            ["montecarlo", "S", "--trials", "1", "--workers", "2147483648"],
+            "argument --workers: expected 1 to 4096 (processes or CPUs), got 2147483648",
+        ),
+        (
+            ["detect", "a.png", "--leds", "1000"],
+            "argument --leds: expected 1 to 64 (the most a switching sequence codes), got 1000",
+        ),
+    ],
+)
+def test_counts_past_what_a_command_can_hold_are_refused(argv, said, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    assert said in capsys.readouterr().err
