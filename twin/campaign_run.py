@@ -149,6 +149,30 @@ def skip_visits_not_made(
     return missed
 
 
+def dropped_visits(results: Mapping[str, Any], sc: Scenario) -> list[dict[str, Any]]:
+    """The scenario's visits that a run's ``results`` hold no calibration of, in the
+    scenario's order: each ``camera``, ``visit`` (its number among the camera's visits),
+    ``station`` ((2,) W, m), and the ``reason`` and ``message`` its skipped visit recorded
+    (``not_made`` and no message for a visit the log does not mention)."""
+    made = {(str(c["camera"]), int(c["visit"])) for c in results["calibrations"]}
+    skipped = {(str(s["camera"]), int(s["visit"])): s for s in results["skipped_visits"]}
+    out = []
+    for key, station in planned_visits(sc):
+        if key in made:
+            continue
+        entry = skipped.get(key, {})
+        out.append(
+            {
+                "camera": key[0],
+                "visit": key[1],
+                "station": list(station),
+                "reason": str(entry.get("reason", "not_made")),
+                "message": str(entry.get("message") or ""),
+            }
+        )
+    return out
+
+
 RUN_OUTPUTS = ("log.mcap", "results.json", "cameras", "figures", "report.md")
 """What a run writes in its folder (and clears there with ``overwrite``)."""
 

@@ -28,8 +28,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "first station, CPS travel along the route, a calibration at every visit. In the "
             "twin, or with --rig on real devices (or their emulators). Writes "
             "DIR/log.mcap (every reading, as it arrives), DIR/results.json, DIR/cameras/, "
-            "DIR/figures/ and DIR/report.md. Exit code 0; 1 when no camera was calibrated; 2 "
-            "for bad input (nothing written: a rig file that does not fit the scenario, a "
+            "DIR/figures/ and DIR/report.md. Exit code 0 when every visit of the scenario "
+            "gave a calibration; 1 when one did not (the dropped visits are listed with "
+            "why); 2 for bad input (nothing written: a rig file that does not fit the scenario, a "
             "folder another run is writing) or a device that cannot be opened (the log of "
             "the attempt is kept); 130 when interrupted (Ctrl-C, SIGTERM: every robot is "
             "stopped, the log so far is kept)."
@@ -74,8 +75,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run; exit code 0, 1 when no camera was calibrated, 2 for bad input, 130 when
-    interrupted."""
+    """Run; exit code 0, 1 when a visit of the scenario was dropped (no calibration), 2 for
+    bad input, 130 when interrupted."""
     console = Console(highlight=False, soft_wrap=True)
     sc = load_or_report(args.scenario, console)
     if sc is None:
@@ -128,7 +129,22 @@ def run(args: argparse.Namespace) -> int:
     print_results(results, console)
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")
-    return 0 if results["calibrations"] else 1
+    from twin.campaign_run import dropped_visits
+
+    dropped = dropped_visits(results, sc)
+    print_dropped(dropped, len(sc.calibration.visits), console)
+    return 1 if dropped or not results["calibrations"] else 0
+
+
+def print_dropped(dropped: list[dict], visits: int, console: Console) -> None:
+    """The visits a run dropped (:func:`twin.campaign_run.dropped_visits`), one a line:
+    camera, visit number and the recorded reason."""
+    if not dropped:
+        return
+    console.print(f"[red]dropped {len(dropped)} of the scenario's {visits} visits:[/red]")
+    for d in dropped:
+        why = f"{d['reason']}: {d['message']}" if d["message"] else d["reason"]
+        console.print(f"  {d['camera']} visit {d['visit']}: {escape(why)}")
 
 
 def _run_on_rig(

@@ -57,6 +57,27 @@ def test_a_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys):
     assert results["skipped_visits"][0]["reason"] == "station_unreachable"
 
 
+def test_a_run_that_drops_one_visit_exits_with_1_and_lists_it(tmp_path, capsys):
+    # Two visits of cam1; the second's station is unreachable: the first calibrates, the
+    # run still exits 1 and names the visit it dropped with the recorded reason.
+    two = '{ camera = "cam1", station = [0.5, 0.0] }, { camera = "cam1", station = [2.0, 0.0] }'
+    text = SMOKE.read_text().replace(
+        '[{ camera = "cam1", station = [0.5, 0.0] }]',
+        f"[{two}]\n\n[faults]\nunreachable = [[2.0, 0.0]]",
+    )
+    scenario = tmp_path / "dropped.toml"
+    scenario.write_text(text)
+    out = tmp_path / "run"
+    args = ["run", str(scenario), "--fidelity", "geometric", "--no-report", "--out", str(out)]
+    assert main(args) == 1
+    said = capsys.readouterr().out
+    results = json.loads((out / "results.json").read_text())
+    assert [(c["camera"], c["visit"]) for c in results["calibrations"]] == [("cam1", 1)]
+    assert "dropped 1 of the scenario's 2 visits:" in said
+    assert "  cam1 visit 2: station_unreachable: the parent stopped short" in said.splitlines()
+    assert "cam1 visit 1:" not in said
+
+
 def test_a_monte_carlo_run_that_calibrated_nothing_exits_with_1(tmp_path, capsys):
     text = SMOKE.read_text().replace("[route]", "[faults]\nunreachable = [[0.5, 0.0]]\n\n[route]")
     scenario = tmp_path / "blocked.toml"
