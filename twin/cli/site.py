@@ -6,6 +6,7 @@ import argparse
 import math
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
@@ -14,6 +15,9 @@ from rich.table import Table
 from twin.cli import arguments
 from twin.outputs import check_file_target
 from twin.scenario.limits import SMALLEST_SIZE
+
+if TYPE_CHECKING:
+    from twin.planning.repair import Attempt
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,8 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
             "[[cameras]] with a scenario camera's keys, in the map's frame; position z is "
             "the height above the floor), choose each camera's station, the shortest tour "
             "over them and the route between, and write a scenario that twin run, twin "
-            "montecarlo and the environment read, with a figure of the plan. Exit code 0; "
-            "2 for a bad map, cameras file or plan (named, nothing written)."
+            "montecarlo and the environment read, with a figure of the plan. The plan is "
+            "run once noise-free at the geometric fidelity and, where that run drops a "
+            "visit, repaired (another station, shorter legs, another visit order) until "
+            "every camera is calibrated or the repairs run out. Exit code 0 when every "
+            "camera is calibrated; 1 when one is not (named with why, the best plan "
+            "written); 2 for a bad map, cameras file or plan (named, nothing written)."
         ),
     )
     p.add_argument("map", type=Path, help="map.yaml, a .dxf, or a mesh (.obj .stl .ply .gltf .glb)")
@@ -69,11 +77,41 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-predict",
         action="store_true",
-        help="skip the geometric run that predicts each camera's error for the figure",
+        help="skip the geometric run that predicts each camera's error for the figure "
+        "(and the repairs)",
+    )
+    p.add_argument(
+        "--repairs",
+        type=repair_count,
+        default=ATTEMPTS,
+        metavar="N",
+        help=f"repairs of the plan tried at most when its run drops a visit, 0 to "
+        f"{MAX_REPAIRS} (default: {ATTEMPTS}; none is started after {SECONDS:g} s of "
+        "repairing)",
     )
     p.add_argument("--out", type=Path, required=True, metavar="SITE.toml", help="scenario to write")
     arguments.add_overwrite(p, file=True)
     p.set_defaults(func=run)
+
+
+ATTEMPTS = 6
+"""Default of ``--repairs`` (:data:`twin.planning.repair.ATTEMPTS`, not imported here: the
+planning modules load on use)."""
+SECONDS = 120.0
+"""No repair starts after this long, s (:data:`twin.planning.repair.SECONDS`)."""
+MAX_REPAIRS = 100
+"""Most repairs ``--repairs`` allows."""
+
+
+def repair_count(text: str) -> int:
+    """``--repairs``: a whole number from 0 to :data:`MAX_REPAIRS`."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not 0 <= value <= MAX_REPAIRS:
+        raise argparse.ArgumentTypeError(f"expected 0 to {MAX_REPAIRS}, got {text}")
+    return value
 
 
 MAX_RESOLUTION = 1.0
@@ -109,8 +147,8 @@ def visit_order(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan; exit code 0, 1 when one geometric run of the plan does not calibrate every
-    camera (the plan is written), 2 for bad input."""
+    """Plan; exit code 0, 1 when the plan's geometric run, repaired, does not calibrate
+    every camera (the best plan is written), 2 for bad input."""
     from twin.planning.floor_map import MapError
     from twin.planning.site_file import write_site
 
@@ -137,6 +175,9 @@ def run(args: argparse.Namespace) -> int:
             predict=not args.no_predict,
             overwrite=args.overwrite,
             data_stops=args.data_stops,
+            repairs=args.repairs,
+            repair_seconds=SECONDS,
+            tried=lambda attempt: print_attempt(attempt, console),
         )
     except (MapError, ValueError) as exc:
         console.print(f"[red]error:[/red] {escape(str(exc))}")
@@ -163,12 +204,35 @@ def run(args: argparse.Namespace) -> int:
         f"{plan.pose.y:.2f}) heading {math.degrees(plan.pose.yaw):.1f} deg"
     )
     console.print(f"scenario: {written.path}; figure: {written.figure}")
+    kept = sum(a.kept for a in written.repairs)
+    if written.repairs:
+        console.print(f"{len(written.repairs)} repairs tried, {kept} kept")
     if written.not_calibrated:
+        how = (
+            f"after {len(written.repairs)} repairs"
+            if written.repairs
+            else "and no repair was tried"
+            if args.repairs == 0 or args.no_predict
+            else "and no repair applies"
+        )
         console.print(
-            "[yellow]warning:[/yellow] one geometric run of the plan does not calibrate "
-            "every camera (the plan is written, to be looked at and edited):"
+            "[yellow]warning:[/yellow] the plan's geometric run does not calibrate every "
+            f"camera {how} (the best plan is written, to be looked at and edited):"
         )
         for cam, why in written.not_calibrated.items():
             console.print(f"  {cam}: {escape(why)}")
         return 1
+    if kept:
+        console.print("every camera is calibrated by the repaired plan")
     return 0
+
+
+def print_attempt(attempt: Attempt, console: Console) -> None:
+    """One repair as it ends: what it did and what its run gave."""
+    if attempt.run is None:
+        result = f"[red]no plan[/red]: {escape(attempt.error)}"
+    else:
+        run = attempt.run
+        result = f"{len(run.calibrated)} cameras calibrated, {len(run.dropped)} visits dropped"
+        result += "; [green]kept[/green]" if attempt.kept else "; not better, undone"
+    console.print(f"repair: {escape(attempt.what)}: {result}")

@@ -185,6 +185,7 @@ def plan_site(
     resolution: float = DEFAULT_RESOLUTION,
     map_file: str = "",
     seed: int = 1,
+    avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
 ) -> SitePlan:
     """Plan the campaign of ``cameras`` on ``floor`` (see the module).
 
@@ -198,6 +199,9 @@ def plan_site(
             adjustment (none if no place near the start is clear).
         resolution: the boxes' grid, m. map_file: the map's path as the scenario keeps it.
         seed: the scenario's seed.
+        avoid: by camera name, (x, y) places in the map's frame, m, that the camera's
+            station keeps :data:`twin.planning.stations.AVOID_RADIUS` from (where a run of an
+            earlier plan failed: :mod:`twin.planning.repair`); default none.
 
     Raises:
         MapError: a camera outside the map, no station for a camera, no path between two
@@ -229,7 +233,9 @@ def plan_site(
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
         # best open tour over them, so that the route runs on rather than back and forth.
-        in_map = _stations(floor, cameras, chosen, MapPose(), station_free, floor_z, resolution)
+        in_map = _stations(
+            floor, cameras, chosen, MapPose(), station_free, floor_z, resolution, avoid
+        )
         graph = RouteGraph(parent_free)
         first, second = _first_two(graph, in_map, wanted, floor.source)
         pose = MapPose(*_lead_in(first, second, parent_free), 0.0)
@@ -248,7 +254,7 @@ def plan_site(
                 f"clearance ({FORMATION_CLEARANCE:.2f} m from every wall and obstacle)",
             )
         pose = MapPose(x, y, yaw)
-        stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution)
+        stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid)
     boxed = boxed_space(floor, pose, resolution)
     if start is None:  # the boxes laid in the chosen W: checked again
         space = validate_model(Space, _space_dict(boxed, floor_z))
@@ -323,10 +329,11 @@ def _stations(
     station_free: tuple[BaseGeometry, BaseGeometry],
     floor_z: float,
     resolution: float,
+    avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
 ) -> dict[str, Station]:
     """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
     (``station_free[0]``) where one there sees enough, else on the floor the parent can
-    reach (``station_free[1]``)."""
+    reach (``station_free[1]``); away from the camera's places in ``avoid`` (map frame)."""
     boxed = boxed_space(floor, pose, resolution)
     space = validate_model(Space, _space_dict(boxed, floor_z))
     _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
@@ -348,12 +355,24 @@ def _stations(
                     prism_height=float(np.mean([c[2] for c in marker.cubes])),
                     instrument_range=(ts.range_min, ts.range_max),
                     need=STATION_NEED,
+                    avoid=_avoided(avoid, name, pose),
                 )
                 break
             except NoStationError as exc:
                 if k == len(wheres) - 1:
                     raise MapError(floor.source, str(exc)) from None
     return out
+
+
+def _avoided(
+    avoid: Mapping[str, Sequence[Sequence[float]]] | None, name: str, pose: MapPose
+) -> NDArray[np.float64] | None:
+    """(K, 2) the places camera ``name``'s station avoids, in the W of ``pose``; None if
+    none."""
+    places = (avoid or {}).get(name)
+    if not places:
+        return None
+    return pose.map2world(np.asarray(places, dtype=float).reshape(-1, 2))
 
 
 def _check_cameras_clear(

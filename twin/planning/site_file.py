@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import tomli_w
@@ -13,10 +13,12 @@ import tomli_w
 from twin.outputs import write_text_atomic
 from twin.planning.floor_map import MapError
 from twin.planning.maps import load_map
+from twin.planning.repair import ATTEMPTS, SECONDS, Attempt, Fix, TrialRun, repair_plan, trial_run
 from twin.planning.site import SitePlan, plan_site, read_cameras
 from twin.scenario import Scenario
 from twin.scenario.errors import ScenarioError
 from twin.scenario.loader import scenario_from_dict
+from twin.scenario.schema import FormationSettings
 
 
 @dataclass(frozen=True)
@@ -30,7 +32,10 @@ class WrittenSite:
             visits' best, mm) from one geometric run; empty when not predicted.
         route_length_m: the parent's route, m.
         not_calibrated: the cameras that geometric run did not calibrate, each with why
-            (the skipped visit's reason and message); empty when not predicted.
+            (the skipped visit's reason and message, and where it failed in the map's
+            frame); empty when not predicted.
+        repairs: the repairs tried on the plan, in order (:mod:`twin.planning.repair`);
+            the plan written is the best.
     """
 
     path: Path
@@ -40,6 +45,7 @@ class WrittenSite:
     predicted_mm: dict[str, float]
     route_length_m: float
     not_calibrated: dict[str, str] = field(default_factory=dict)
+    repairs: tuple[Attempt, ...] = ()
 
 
 def write_site(
@@ -55,11 +61,19 @@ def write_site(
     predict: bool = True,
     overwrite: bool = False,
     data_stops: str = "all_leds",
+    repairs: int = ATTEMPTS,
+    repair_seconds: float = SECONDS,
+    tried: Callable[[Attempt], None] | None = None,
 ) -> WrittenSite:
     """Plan a site and write its scenario (TOML) and figure.
 
     ``data_stops`` is the scenario's ``campaign.data_stops``: ``accuracy`` plans the child's
     data points for the camera's accuracy (:mod:`twin.campaign.plan.accurate_stops`).
+
+    With ``predict``, the plan is run once noise-free at the geometric fidelity, and where
+    that run drops a visit the plan is repaired (:func:`twin.planning.repair.repair_plan`:
+    at most ``repairs`` repairs, none started after ``repair_seconds``; ``tried`` is called
+    with each); the best plan is written.
 
     Raises:
         MapError: a bad map, cameras file or plan; nothing is written.
@@ -74,23 +88,47 @@ def write_site(
     floor = load_map(map_path)
     cameras = read_cameras(cameras_path)
     map_ref = _relative(map_path, out.parent)
-    plan = plan_site(
-        floor,
-        cameras,
-        name=name or _name(out.stem),
-        start=start,
-        visits=visits,
-        return_to_start=return_to_start,
-        resolution=resolution,
-        map_file=map_ref,
-    )
-    if data_stops != "all_leds":
-        plan.scenario["campaign"] = {"data_stops": data_stops}
-    try:
-        scenario = scenario_from_dict(plan.scenario, file=out)
-    except ScenarioError as exc:
-        raise MapError(floor.source, f"the planned scenario does not validate: {exc}") from None
-    predicted, missed = predicted_errors(scenario) if predict else ({}, {})
+
+    def planner(fix: Fix) -> tuple[SitePlan, Scenario]:
+        plan = plan_site(
+            floor,
+            cameras,
+            name=name or _name(out.stem),
+            start=start,
+            visits=visits if fix.order is None else fix.order,
+            return_to_start=return_to_start,
+            resolution=resolution,
+            map_file=map_ref,
+            avoid=fix.avoid,
+        )
+        campaign: dict[str, Any] = {}
+        if data_stops != "all_leds":
+            campaign["data_stops"] = data_stops
+        if fix.step is not None:
+            campaign["formation"] = {"step": fix.step}
+        if campaign:
+            plan.scenario["campaign"] = campaign
+        try:
+            scenario = scenario_from_dict(plan.scenario, file=out)
+        except ScenarioError as exc:
+            raise MapError(floor.source, f"the planned scenario does not validate: {exc}") from None
+        return plan, scenario
+
+    if predict:
+        repaired = repair_plan(
+            planner,
+            default_step=FormationSettings().step,
+            fixed_order=visits is not None,
+            attempts=repairs,
+            seconds=repair_seconds,
+            tried=tried,
+        )
+        plan, scenario, attempts = repaired.plan, repaired.scenario, repaired.attempts
+        predicted = repaired.run.predicted_mm
+        missed = _where_missed(repaired.run, plan)
+    else:
+        (plan, scenario), attempts = planner(Fix()), ()
+        predicted, missed = {}, {}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(out, _header(map_ref) + tomli_w.dumps(plan.scenario))
     from twin.planning.figure import plan_figure
@@ -98,39 +136,30 @@ def write_site(
     figure = plan_figure(scenario, out.with_suffix(".plan.png"), predicted)
     route = np.asarray(scenario.route.waypoints)
     length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
-    return WrittenSite(out, figure, scenario, plan, predicted, length, missed)
+    return WrittenSite(out, figure, scenario, plan, predicted, length, missed, attempts)
 
 
 def predicted_errors(scenario: Scenario) -> tuple[dict[str, float], dict[str, str]]:
-    """Each camera's predicted world-frame position error, RMS mm, from one geometric run
-    of ``scenario`` (the covariance the campaign propagates, :mod:`twin.montecarlo.
-    prediction`; a camera calibrated twice keeps its better visit), and why that run
-    calibrated none of a camera's visits (``reason: message`` of its first skipped visit)
-    for each camera it did not calibrate."""
-    from twin.montecarlo.prediction import predictions_from_log
-    from twin.record import read_log
-    from twin.report.reading import skipped_why
-    from twin.runner import run_scenario
+    """Each camera's predicted world-frame position error, RMS mm, from one noise-free
+    geometric run of ``scenario`` (the covariance the campaign propagates with the
+    scenario's noise, :mod:`twin.montecarlo.prediction`; a camera calibrated twice keeps
+    its better visit), and why that run calibrated none of a camera's visits (``reason:
+    message`` of its first dropped visit) for each camera it did not calibrate
+    (:func:`twin.planning.repair.trial_run`)."""
+    run = trial_run(scenario)
+    return run.predicted_mm, run.missed
 
-    with tempfile.TemporaryDirectory() as tmp:
-        results = run_scenario(scenario, tmp, fidelity="geometric", report=False, overwrite=True)
-        messages = read_log(Path(tmp) / "log.mcap").messages
-    pixel = {c.name: scenario.projected_led_px(c.name) for c in scenario.cameras}
-    predictions, _ = predictions_from_log(messages, pixel)
-    out: dict[str, float] = {}
-    for p in predictions:
-        mm = 1e3 * p.rms_m
-        out[p.camera] = min(out.get(p.camera, mm), mm)
-    calibrated = {c["camera"] for c in results["calibrations"]}
-    missed: dict[str, str] = {}
-    for skipped in results["skipped_visits"]:
-        camera = skipped["camera"]
-        if camera not in calibrated and camera not in missed:
-            missed[camera] = skipped_why(skipped)
-    for camera in scenario.cameras:
-        if camera.name not in calibrated and camera.name not in missed:
-            missed[camera.name] = "not visited"
-    return out, missed
+
+def _where_missed(run: TrialRun, plan: SitePlan) -> dict[str, str]:
+    """Why each camera ``run`` did not calibrate was not, the place its visit failed named
+    in the map's frame."""
+    out = dict(run.missed)
+    failed = run.failed
+    if failed is not None and failed.camera in out:
+        x, y = plan.pose.world2map(failed.place)
+        what = "travel to its station" if failed.stage == "travel" else "data at its station"
+        out[failed.camera] += f" (the {what} failed at ({x:.2f}, {y:.2f}) in the map's frame)"
+    return out
 
 
 def _relative(path: Path, folder: Path) -> str:

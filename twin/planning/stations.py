@@ -36,6 +36,12 @@ SEES_EQUALLY = 0.02
 """Two candidates whose visible fractions differ by less than this see equally well."""
 
 
+AVOID_RADIUS = 2.0
+"""How far a station keeps from a place it is told to avoid, m: about the formation's reach
+(the children stand 2.5 m and more ahead), so that the new station is not the old one's
+neighbour on the grid."""
+
+
 @dataclass(frozen=True)
 class Station:
     """A camera's station.
@@ -68,6 +74,7 @@ def choose_station(
     instrument_range: tuple[float, float],
     need: float,
     grid: float = GRID,
+    avoid: NDArray[np.float64] | None = None,
 ) -> Station:
     """The station of one camera (see the module).
 
@@ -80,6 +87,8 @@ def choose_station(
             distance, m.
         need: the least visible fraction a station must reach.
         grid: candidates' spacing, m.
+        avoid: (K, 2) places in W no station may stand within :data:`AVOID_RADIUS` of
+            (where an earlier plan's station or travel failed); default none.
 
     Raises:
         NoStationError: no candidate reaches ``need``.
@@ -89,6 +98,9 @@ def choose_station(
         raise NoStationError(f"camera {camera_name!r} sees no floor")
     centre = view[:, :2].mean(axis=0)
     candidates = _candidates(reachable, centre, grid)
+    if avoid is not None and len(avoid) and len(candidates):
+        near = np.linalg.norm(candidates[:, None, :] - np.asarray(avoid)[None, :, :], axis=2)
+        candidates = candidates[np.all(near >= AVOID_RADIUS, axis=1)]
     best: Station | None = None
     best_key = (-1.0, 0.0)
     for xy in candidates:
@@ -106,9 +118,14 @@ def choose_station(
             if best is None
             else f"at best {100 * best.visible:.0f} % (from {np.round(best.xy, 2).tolist()})"
         )
+        avoided = (
+            ""
+            if avoid is None or not len(avoid)
+            else f" {AVOID_RADIUS:g} m or more from {np.round(avoid, 2).tolist()}"
+        )
         raise NoStationError(
-            f"no station sees {100 * need:.0f} % of camera {camera_name!r}'s floor view: "
-            f"{found}; is the camera placed and aimed as in the map's frame?"
+            f"no station{avoided} sees {100 * need:.0f} % of camera {camera_name!r}'s floor "
+            f"view: {found}; is the camera placed and aimed as in the map's frame?"
         )
     return best
 
