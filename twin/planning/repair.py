@@ -243,7 +243,7 @@ def repair_plan(
     attempts: int = ATTEMPTS,
     seconds: float = SECONDS,
     tried: Callable[[Attempt], None] | None = None,
-    run: Callable[[Scenario], TrialRun] = trial_run,
+    run: Callable[[Scenario], TrialRun] | None = None,
 ) -> Repaired:
     """Plan with no fix, run it, and repair it while it drops a visit (see the module).
 
@@ -257,6 +257,7 @@ def repair_plan(
         tried: called with each repair as it ends. run: runs a plan (default
             :func:`trial_run`).
     """
+    run = run or trial_run
     fix = Fix()
     plan, scenario = planner(fix)
     best = Repaired(plan, scenario, run(scenario), fix, ())
@@ -317,11 +318,14 @@ def _repairs(
             )
         )
     orders = []
-    if not fixed_order:
-        first = (cam, *(c for c in plan.order if c != cam))
-        orders.append((f"another visit order ({cam} first)", dataclasses.replace(fix, order=first)))
-        backwards = tuple(reversed(plan.order))
-        orders.append(("the visits in reverse order", dataclasses.replace(fix, order=backwards)))
+    first = (cam, *(c for c in plan.order if c != cam))
+    backwards = tuple(reversed(plan.order))
+    for what, order in (
+        (f"another visit order ({cam} first)", first),
+        ("the visits in reverse order", backwards),
+    ):
+        if not fixed_order and order != plan.order:
+            orders.append((what, dataclasses.replace(fix, order=order)))
     near = float(np.linalg.norm(failed.place - failed.station)) <= default_step
     if failed.stage == "station" or near:
         return [another, *shorter, *orders]

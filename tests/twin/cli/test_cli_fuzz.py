@@ -252,6 +252,7 @@ def argv_parts(edges: bool) -> dict[str, tuple[st.SearchStrategy[list[str]], ...
             opt("--resolution", pick(["0.1", "0.2"], NUMBERS)),
             opt("--data-stops", pick(["all_leds", "accuracy"])),
             opt("--name", pick(["room"], ["", "a/b"])),
+            opt("--repairs", pick(["0", "3"], NUMBERS)),
             fixed("--no-predict"),
             required("--out", out_file(".toml")),
             flag("--overwrite"),
