@@ -235,4 +235,4 @@ def print_attempt(attempt: Attempt, console: Console) -> None:
         run = attempt.run
         result = f"{len(run.calibrated)} cameras calibrated, {len(run.dropped)} visits dropped"
         result += "; [green]kept[/green]" if attempt.kept else "; not better, undone"
-    console.print(f"repair: {escape(attempt.what)}: {result}")
+    console.print(f"{escape(attempt.cause)} dropped; repair: {escape(attempt.what)}: {result}")

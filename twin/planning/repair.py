@@ -203,9 +203,10 @@ class Attempt:
     """One repair tried.
 
     Attributes:
-        what: the repair, in words. fix: the plan's changes with it.
-        run: its run (None if the plan could not be made). kept: whether it became the
-            best plan. error: why the plan could not be made ("" if it was).
+        what: the repair, in words (places in the map's frame). fix: the plan's changes
+            with it. run: its run (None if the plan could not be made). kept: whether it
+            became the best plan. error: why the plan could not be made ("" if it was).
+        cause: the failure it repairs, ``CAMERA visit N (reason: message)``.
     """
 
     what: str
@@ -213,6 +214,7 @@ class Attempt:
     run: TrialRun | None
     kept: bool
     error: str = ""
+    cause: str = ""
 
 
 @dataclass(frozen=True)
@@ -277,14 +279,15 @@ def repair_plan(
             break
         what, f = options[0]
         done.add(f.key())
+        cause = f"{failed.camera} visit {failed.visit} ({failed.why})"
         try:
             plan, scenario = planner(f)
         except MapError as exc:
-            attempt = Attempt(what, f, None, False, str(exc))
+            attempt = Attempt(what, f, None, False, str(exc), cause)
         else:
             trial = run(scenario)
             kept = trial.score > best.run.score
-            attempt = Attempt(what, f, trial, kept)
+            attempt = Attempt(what, f, trial, kept, cause=cause)
             if kept:
                 best = Repaired(plan, scenario, trial, f, ())
         log.append(attempt)
@@ -303,7 +306,7 @@ def _repairs(
     station = plan.pose.world2map(failed.station)
     avoid = (*fix.avoid.get(cam, ()), (round(float(station[0]), 2), round(float(station[1]), 2)))
     another = (
-        f"another station for {cam}, away from ({station[0]:.2f}, {station[1]:.2f})",
+        f"another station for {cam}, away from ({station[0]:.2f}, {station[1]:.2f}) (map frame)",
         dataclasses.replace(fix, avoid={**fix.avoid, cam: avoid}),
     )
     step = fix.step or default_step
@@ -313,7 +316,7 @@ def _repairs(
         shorter.append(
             (
                 f"shorter legs ({step:g} m) for the travel that failed near "
-                f"({here[0]:.2f}, {here[1]:.2f})",
+                f"({here[0]:.2f}, {here[1]:.2f}) (map frame)",
                 dataclasses.replace(fix, step=step),
             )
         )

@@ -80,6 +80,8 @@ def test_a_plan_no_repair_mends_is_written_and_the_camera_named_with_why(
     tried = said.split("repair: ")[1:]
     assert len(tried) == 2
     assert tried[0].startswith("another station for cam1")
+    cause = "cam1 visit 1 (station_unreachable: the parent stopped short) dropped; repair: "
+    assert said.count(cause) == 2
     assert tried[1].startswith("shorter legs (2.5 m)")
     assert all("0 cameras calibrated, 1 visits dropped; not better, undone" in t for t in tried)
     assert "2 repairs tried, 0 kept" in said
@@ -174,3 +176,10 @@ def test_a_repair_count_out_of_range_is_refused_by_name(tmp_path, capsys):
     assert exit_.value.code == 2
     assert "argument --repairs: expected 0 to 100, got 101" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_commands_bounds_are_the_planners():
+    # The command states its defaults without loading the planner: they must agree.
+    from twin.cli import site as site_command
+
+    assert (site_command.ATTEMPTS, site_command.SECONDS) == (repair.ATTEMPTS, repair.SECONDS)
