@@ -183,3 +183,47 @@ def test_the_commands_bounds_are_the_planners():
     from twin.cli import site as site_command
 
     assert (site_command.ATTEMPTS, site_command.SECONDS) == (repair.ATTEMPTS, repair.SECONDS)
+
+
+def test_a_repair_that_cannot_be_planned_is_counted_and_the_next_tried():
+    from twin.planning.floor_map import MapError
+
+    failed = Failed("cam2", 1, "station", "too_few_points", np.zeros(2), np.zeros(2))
+
+    def planner(fix: Fix):
+        if fix.avoid:
+            raise MapError("map.yaml", "no station 2 m or more from [[0.0, 0.0]] sees 50 %")
+        return _plan(("cam1", "cam2")), fix
+
+    repaired = repair_plan(
+        planner, default_step=5.0, fixed_order=True, attempts=2, run=lambda _: _run(failed)
+    )
+    first, second = repaired.attempts
+    assert first.run is None
+    assert not first.kept
+    assert "no station 2 m or more from [[0.0, 0.0]]" in first.error
+    assert first.cause == "cam2 visit 1 (too_few_points)"
+    assert second.fix.step == 2.5
+    assert second.run is not None
+
+
+def test_a_station_keeps_away_from_the_places_avoided_and_says_so():
+    import shapely
+
+    from twin.planning.stations import NoStationError, choose_station
+
+    sc = load_scenario(Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml")
+    kwargs = {
+        "instrument_z": 0.0,
+        "prism_height": 0.3,
+        "instrument_range": (1.3, 100.0),
+        "need": 0.5,
+    }
+    floor = shapely.box(-1.5, -2.5, 2.5, 2.5)
+    camera = sc.cameras[0].tsai()
+    free = choose_station("cam1", camera, sc.space, floor, **kwargs)
+    moved = choose_station("cam1", camera, sc.space, floor, avoid=np.array([free.xy]), **kwargs)
+    assert np.linalg.norm(moved.xy - free.xy) >= AVOID_RADIUS
+    everywhere = np.array([[x, y] for x in (-1.0, 0.5, 2.0) for y in (-2.0, 0.0, 2.0)])
+    with pytest.raises(NoStationError, match=r"no station 2 m or more from \[\[-1\.0, -2\.0\]"):
+        choose_station("cam1", camera, sc.space, floor, avoid=everywhere, **kwargs)
