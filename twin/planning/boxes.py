@@ -16,9 +16,8 @@ import numpy as np
 import shapely
 from numpy.typing import NDArray
 
-from twin.planning.floor_map import FloorMap, MapError
+from twin.planning.floor_map import FloorMap
 from twin.planning.frames import MapPose
-from twin.scenario.limits import MAX_OBSTACLES
 
 DEFAULT_RESOLUTION = 0.1
 """Grid of the blocked cells, m: the boxes' edges lie within half of it of the map's."""
@@ -56,12 +55,8 @@ class BoxedSpace:
 def boxed_space(
     floor: FloorMap, pose: MapPose, resolution: float = DEFAULT_RESOLUTION
 ) -> BoxedSpace:
-    """The room and its blocked boxes in W of ``floor`` seen from ``pose``.
-
-    Raises:
-        MapError: the map needs more boxes than a scenario holds (``MAX_OBSTACLES``) at
-            this resolution.
-    """
+    """The room and its blocked boxes in W of ``floor`` seen from ``pose`` (as many as the
+    floor needs: a scenario references its map rather than holding them)."""
     if not (math.isfinite(resolution) and resolution > 0):
         raise ValueError(f"resolution must be a positive length, got {resolution!r}")
     free = pose.geometry2world(floor.free)
@@ -95,12 +90,6 @@ def boxed_space(
                     height=float(h),
                 )
             )
-    if len(boxes) > MAX_OBSTACLES:
-        raise MapError(
-            floor.source,
-            f"the blocked floor needs {len(boxes)} boxes at a {resolution:g} m grid; a "
-            f"scenario holds at most {MAX_OBSTACLES}: use a coarser resolution",
-        )
     size = (nx * resolution, ny * resolution, float(floor.height))
     return BoxedSpace(origin=(x0, y0), size=size, boxes=tuple(boxes), resolution=resolution)
 

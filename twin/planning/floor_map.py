@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
@@ -50,6 +51,8 @@ class FloorMap:
         obstacles: what stands on the floor, with heights (for lines of sight).
         height: the ceiling's height above the floor, m.
         source: the file it was read from.
+        options: the reader's keyword options it was read with (:func:`twin.planning.maps.
+            load_map`'s), so that the same floor can be read again.
     """
 
     free: Polygon | MultiPolygon
@@ -57,6 +60,7 @@ class FloorMap:
     height: float = 3.0
     source: str = "<map>"
     notes: tuple[str, ...] = field(default=())
+    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:

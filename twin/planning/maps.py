@@ -18,6 +18,7 @@ regions of free floor to keep).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterable
 from pathlib import Path
@@ -99,7 +100,7 @@ def load_map(path: str | Path, **options: Any) -> FloorMap:
             :func:`~twin.planning.mesh_map.load_mesh_map`.
 
     Returns:
-        The free floor and the obstacles in the map's frame, m.
+        The free floor and the obstacles in the map's frame, m, with ``options`` kept.
 
     Raises:
         MapError: an extension none of the readers knows, or a map the reader rejects.
@@ -110,15 +111,15 @@ def load_map(path: str | Path, **options: Any) -> FloorMap:
     if kind == "ros":
         from twin.planning.ros_map import load_ros_map
 
-        return load_ros_map(path, **options)
+        return dataclasses.replace(load_ros_map(path, **options), options=dict(options))
     if kind == "dxf":
         from twin.planning.dxf_map import load_dxf_map
 
-        return load_dxf_map(path, **options)
+        return dataclasses.replace(load_dxf_map(path, **options), options=dict(options))
     if kind == "mesh":
         from twin.planning.mesh_map import load_mesh_map
 
-        return load_mesh_map(path, **options)
+        return dataclasses.replace(load_mesh_map(path, **options), options=dict(options))
     raise MapError(
         path,
         f"unknown map type {path.suffix or '(no extension)'!r}: expected one of "

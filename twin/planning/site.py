@@ -5,7 +5,8 @@ approximate poses and nominal intrinsics, in the map's frame), the planner:
 
 1. takes the parent's start (given, or the reachable place nearest the middle of the
    cameras' floor views, heading along the map's x-axis) as the world frame W;
-2. lays the map's blocked floor as boxes in W (:mod:`twin.planning.boxes`);
+2. lays the map's blocked floor as boxes in W (:mod:`twin.planning.boxes`), which the
+   scenario does not write out: it references the map (``[space.map]``) and its hash;
 3. chooses each camera's station (:mod:`twin.planning.stations`);
 4. orders the visits by the shortest tour over the stations (:mod:`twin.planning.tour`)
    unless the user gives the order, with a return to the start if asked;
@@ -37,12 +38,14 @@ from calib.io.text import read_text, yaml_load
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
 from twin.planning.floor_map import FloorMap, MapError
 from twin.planning.frames import MapPose
+from twin.planning.map_files import map_sha256
 from twin.planning.route import NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
 from twin.scenario.errors import ScenarioError
 from twin.scenario.geometry import inside_obstacles
 from twin.scenario.loader import validate_model
+from twin.scenario.map_space import map_obstacle
 from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
 
@@ -257,7 +260,7 @@ def plan_site(
         stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid)
     boxed = boxed_space(floor, pose, resolution)
     if start is None:  # the boxes laid in the chosen W: checked again
-        space = validate_model(Space, _space_dict(boxed, floor_z))
+        space = _space(boxed, floor_z)
         _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
@@ -282,6 +285,7 @@ def plan_site(
         name=name,
         seed=seed,
         space=boxed,
+        map_ref=_map_ref(floor, map_file or floor.source, pose, resolution),
         floor_z=floor_z,
         cameras=[cams_w[n] for n in names],
         children=children,
@@ -335,7 +339,7 @@ def _stations(
     (``station_free[0]``) where one there sees enough, else on the floor the parent can
     reach (``station_free[1]``); away from the camera's places in ``avoid`` (map frame)."""
     boxed = boxed_space(floor, pose, resolution)
-    space = validate_model(Space, _space_dict(boxed, floor_z))
+    space = _space(boxed, floor_z)
     _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
@@ -487,20 +491,37 @@ def _camera_in_world(cam: Mapping[str, Any], pose: MapPose, floor_z: float) -> d
     return out
 
 
-def _space_dict(space: BoxedSpace, floor_z: float) -> dict[str, Any]:
+def _space_dict(space: BoxedSpace, floor_z: float, map_ref: dict[str, Any]) -> dict[str, Any]:
+    """The scenario's space: the room, and the map its boxes are rebuilt from
+    (``[space.map]``, :class:`twin.scenario.schema.SpaceMap`)."""
     return {
         "size": list(space.size),
         "origin": list(space.origin),
         "floor_z": floor_z,
-        "obstacles": [_obstacle_dict(k, b) for k, b in enumerate(space.boxes)],
+        "map": map_ref,
     }
 
 
-def _obstacle_dict(k: int, box: Any) -> dict[str, Any]:
+def _space(space: BoxedSpace, floor_z: float) -> Space:
+    """The scenario's space with the map's boxes, for the planner's own checks."""
+    room = validate_model(
+        Space, {"size": list(space.size), "origin": list(space.origin), "floor_z": floor_z}
+    )
+    return room.with_map_boxes(tuple(map_obstacle(k, b) for k, b in enumerate(space.boxes)))
+
+
+def _map_ref(floor: FloorMap, map_file: str, pose: MapPose, resolution: float) -> dict[str, Any]:
+    """``[space.map]``: the map as the scenario names it, its content's hash, W's pose in it,
+    the grid and the reader's options."""
+    options = {
+        k: list(v) if isinstance(v, (list, tuple, set)) else v for k, v in floor.options.items()
+    }
     return {
-        "name": f"map_{k}",
-        "center": [float(box.center[0]), float(box.center[1])],
-        "size": [float(box.size[0]), float(box.size[1]), float(box.height)],
+        "file": map_file,
+        "sha256": map_sha256(floor.source),
+        "pose": [pose.x, pose.y, math.degrees(pose.yaw)],
+        "resolution": resolution,
+        "options": options,
     }
 
 
@@ -615,6 +636,7 @@ def _scenario(
     name: str,
     seed: int,
     space: BoxedSpace,
+    map_ref: dict[str, Any],
     floor_z: float,
     cameras: list[dict[str, Any]],
     children: list[NDArray],
@@ -639,7 +661,7 @@ def _scenario(
         "name": name,
         "description": f"Planned from the map {site['map']}: {len(cameras)} cameras.",
         "seed": seed,
-        "space": _space_dict(space, floor_z),
+        "space": _space_dict(space, floor_z, map_ref),
         "cameras": cameras,
         "robots": {
             "parent": {"name": "parent", "model": "pioneer3at", "start_xy": [0.0, 0.0]},

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -163,8 +165,10 @@ def _where_missed(run: TrialRun, plan: SitePlan) -> dict[str, str]:
 
 
 def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to ``folder`` (``../maps/floor.yaml``), so that the scenario and its
+    map move together; absolute where no relative path leads there (another drive)."""
     try:
-        return str(path.resolve().relative_to(folder.resolve()))
+        return os.path.relpath(path.resolve(), folder.resolve())
     except ValueError:
         return str(path.resolve())
 
@@ -179,6 +183,7 @@ def _header(map_ref: str) -> str:
     return (
         f"# Planned by twin site from the map {map_ref}.\n"
         "# Coordinates are in the world frame W: the parent's instrument frame at its start\n"
-        "# ([site] map_pose gives it in the map's frame). The blocked floor is laid on a grid\n"
-        "# as boxes (space.obstacles); each station sees its camera's floor view.\n\n"
+        "# ([site] map_pose gives it in the map's frame). The blocked floor is the map's,\n"
+        "# laid on a grid as boxes when the scenario is read ([space.map]: the map must keep\n"
+        "# its sha256); each station sees its camera's floor view.\n\n"
     )

@@ -19,6 +19,7 @@ from pydantic.fields import FieldInfo
 from calib.io.text import NotText, read_text, yaml_load
 from twin.scenario.cross_checks import check_scenario
 from twin.scenario.errors import ScenarioError, ScenarioIssue
+from twin.scenario.map_space import with_map_boxes
 from twin.scenario.schema import Scenario
 
 # What a user should have written, by pydantic error type.
@@ -106,14 +107,16 @@ def read_mapping(path: Path, error: type[ScenarioError] = ScenarioError) -> Mapp
 
 
 def scenario_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> Scenario:
-    """Validate a parsed scenario mapping (see :func:`load_scenario`)."""
+    """Validate a parsed scenario mapping (see :func:`load_scenario`); a space that
+    references its map (``[space.map]``) gets the map's boxes, the map read relative to
+    ``file``'s folder (:mod:`twin.scenario.map_space`)."""
     data = dict(raw)
     if "source" in data:
         raise ScenarioError(
             file, [ScenarioIssue("source", "reserved key", data["source"], "no such key")]
         )
     data["source"] = str(file)
-    sc = validate_model(Scenario, data, file)
+    sc = with_map_boxes(validate_model(Scenario, data, file), file)
     issues = check_scenario(sc)
     if issues:
         raise ScenarioError(file, issues)

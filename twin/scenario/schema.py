@@ -22,9 +22,12 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
+    SerializerFunctionWrapHandler,
     ValidationInfo,
     create_model,
     field_validator,
+    model_serializer,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
@@ -145,6 +148,40 @@ class Lighting(Frozen):
     drift_per_frame: Annotated[float, Field(ge=-0.5, le=0.5)] = 0.0
 
 
+MapOption = str | int | float | bool | tuple[str, ...] | dict[str, float]
+"""A value of a map reader's keyword option: a unit name, a number, a flag, a list of layer
+names, heights by layer name."""
+
+
+class SpaceMap(Frozen):
+    """The map a space's blocked floor is rebuilt from (``[space.map]``, written by
+    ``twin site``), instead of its boxes written out.
+
+    The loader reads ``file`` with :func:`twin.planning.maps.load_map` and ``options``,
+    refuses it unless its content hashes to ``sha256``, and lays its blocked floor, seen
+    from ``pose``, as boxes on a ``resolution`` grid (:func:`twin.planning.boxes.
+    boxed_space`, the ceiling at the space's height); they follow the space's own
+    ``obstacles``, with no cap on their number.
+
+    Attributes:
+        file: the map (a ROS map's YAML, a DXF plan, a mesh), relative to the scenario
+            file's folder, or absolute.
+        sha256: SHA-256 of the map's content, 64 hex digits: the file's bytes, then those of
+            a ROS map's image (or a glTF's external buffers)
+            (:func:`twin.planning.map_files.map_sha256`).
+        pose: W in the map's frame: the parent's first station (x, y) m and W's x-axis from
+            the map's x-axis, degrees counter-clockwise.
+        resolution: the grid of the boxes, m.
+        options: the reader's keyword options (``units``, ``wall_layers``, ``keep``...).
+    """
+
+    file: Annotated[str, Field(min_length=1, max_length=400)]
+    sha256: Annotated[str, Field(pattern=r"^[0-9a-f]{64}$")]
+    pose: tuple[Coordinate, Coordinate, AngleDeg] = (0.0, 0.0, 0.0)
+    resolution: Annotated[float, Field(gt=0.0, le=10.0)] = 0.1
+    options: dict[Annotated[str, Field(max_length=40)], MapOption] = {}
+
+
 class Space(Frozen):
     """The space the robots work in: a rectangular room with walls.
 
@@ -156,9 +193,13 @@ class Space(Frozen):
         floor_z: height of the floor in the world frame, m (the world frame is the
             instrument frame, so the floor is below it).
         wall_thickness: m, 1 cm to 2 m.
-        obstacles: inaccessible areas (at most ``MAX_OBSTACLES``).
+        obstacles: inaccessible areas (at most ``MAX_OBSTACLES`` written in the file);
+            once loaded, followed by the boxes of ``map``.
         floor_patches: tilted patches of floor (at most ``MAX_OBSTACLES``).
         lighting: the lights.
+        map: the map the blocked floor is rebuilt from (None: the obstacles are all
+            written in the file). Its boxes are not written back (a dump, the digest):
+            the reference, with the map's hash, stands for them.
     """
 
     size: tuple[RoomSpan, RoomSpan, RoomHeight]
@@ -168,6 +209,28 @@ class Space(Frozen):
     obstacles: tuple[Obstacle, ...] = Field(default=(), max_length=MAX_OBSTACLES)
     floor_patches: tuple[FloorPatch, ...] = Field(default=(), max_length=MAX_OBSTACLES)
     lighting: Lighting = Lighting()
+    map: SpaceMap | None = None
+    _map_boxes: int = PrivateAttr(default=0)
+
+    @model_serializer(mode="wrap")
+    def _without_map_boxes(self, handler: SerializerFunctionWrapHandler) -> dict:
+        """The fields as written: the map's boxes left out (the reference stands for them)."""
+        out = handler(self)
+        if self._map_boxes and isinstance(out, dict) and "obstacles" in out:
+            out["obstacles"] = out["obstacles"][: len(out["obstacles"]) - self._map_boxes]
+        return out
+
+    def with_map_boxes(self, boxes: tuple[Obstacle, ...]) -> Space:
+        """This space with ``boxes`` (its map's blocked floor) after its own obstacles; they
+        are left out of what the space writes back."""
+        out = self.model_copy(update={"obstacles": (*self.own_obstacles, *boxes)})
+        out._map_boxes = len(boxes)
+        return out
+
+    @property
+    def own_obstacles(self) -> tuple[Obstacle, ...]:
+        """The obstacles written in the file (those of the map left out)."""
+        return self.obstacles[: len(self.obstacles) - self._map_boxes]
 
     @property
     def x_range(self) -> tuple[float, float]:
