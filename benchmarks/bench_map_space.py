@@ -37,7 +37,8 @@ def square_floor(folder: Path, side: float = 60.0) -> tuple[Path, Path]:
     """A ``side`` x ``side`` m floor as a ROS map at 5 cm, and two cameras over it: three
     corridors 3 m wide along x joined at both ends by two along y, rooms 5 m deep on both
     sides of each with 1 m doors, a 0.4 m pillar every 6 m by a corridor's walls, and a
-    round atrium 16 m across in the middle; rough walls and clutter as a SLAM map shows. Returns the map's YAML and the cameras file."""
+    round atrium 16 m across in the middle; rough walls and clutter as a SLAM map shows.
+    Returns the map's YAML and the cameras file."""
     folder.mkdir(parents=True, exist_ok=True)
     n = round(side / RESOLUTION)
     img = np.zeros((n, n), np.uint8)  # blocked

@@ -18,6 +18,7 @@ import numpy as np
 import shapely
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon, Rectangle
 from numpy.typing import NDArray
@@ -141,7 +142,13 @@ def draw_space(ax: Axes, scenario: Scenario) -> None:
                 label="tilted floor" if i == 0 else None,
             )
         )
-    for i, obstacle in enumerate(space.obstacles):
+    # One collection for the boxes (a map's floor is thousands of them: a patch each takes
+    # seconds to draw), a hatched patch for each staircase.
+    boxes = [obstacle_corners(ob) for ob in space.obstacles if ob.kind == "box"]
+    style = {"facecolor": "0.7", "edgecolor": "0.4", "linewidth": 0.6, "zorder": 2}
+    if boxes:
+        ax.add_collection(PolyCollection(boxes, closed=True, label="inaccessible", **style))
+    for i, obstacle in enumerate(ob for ob in space.obstacles if ob.kind == "stairs"):
         ax.add_patch(
             Polygon(
                 obstacle_corners(obstacle),
@@ -149,9 +156,9 @@ def draw_space(ax: Axes, scenario: Scenario) -> None:
                 fc="0.7",
                 ec="0.4",
                 lw=0.6,
-                hatch="//" if obstacle.kind == "stairs" else None,
+                hatch="//",
                 zorder=2,
-                label="inaccessible" if i == 0 else None,
+                label="inaccessible" if i == 0 and not boxes else None,
             )
         )
 

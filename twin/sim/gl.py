@@ -106,7 +106,9 @@ def make_renderer(model: object, height: int, width: int) -> object:
     vis.offwidth = max(saved[0], int(width))
     vis.offheight = max(saved[1], int(height))
     try:
-        return mujoco.Renderer(model, height=int(height), width=int(width))
+        # Every geom of a map's thousands of boxes is drawn: none left out of the scene.
+        max_geom = max(10_000, 2 * int(model.ngeom))  # type: ignore[attr-defined]
+        return mujoco.Renderer(model, height=int(height), width=int(width), max_geom=max_geom)
     except ValueError:
         raise
     except Exception as err:
