@@ -14,6 +14,7 @@ from rich.table import Table
 
 from twin.cli import arguments
 from twin.outputs import check_file_target
+from twin.planning.ceiling import CEILING_MARGIN, LOWEST_CEILING
 from twin.scenario.limits import SMALLEST_SIZE
 
 if TYPE_CHECKING:
@@ -56,6 +57,28 @@ def register(sub: argparse._SubParsersAction) -> None:
         "twice, e.g. cam1,cam2,cam3,cam2,cam1 (default: each once, shortest tour)",
     )
     p.add_argument("--return-to-start", action="store_true", help="end the route back at the start")
+    p.add_argument(
+        "--ceiling-height",
+        type=arguments.positive_float,
+        metavar="M",
+        help="the ceiling's height above the floor, m (default: a mesh's own top, else the "
+        f"highest camera plus {CEILING_MARGIN:g} m, at least {LOWEST_CEILING:g} m); a camera at "
+        "or above it is refused by name",
+    )
+    p.add_argument(
+        "--wall-layers",
+        nargs="+",
+        metavar="NAME",
+        help="a DXF map's layers that hold the walls, any case (default: names holding "
+        "wall, A-WALL, Wand/Wände, Mauer, mur, cloison, muro, pared, tabique, parete...)",
+    )
+    p.add_argument(
+        "--obstacle-layers",
+        nargs="+",
+        metavar="NAME",
+        help="a DXF map's layers that hold obstacles, any case (default: names holding "
+        "obstacle, column, pillar or furniture)",
+    )
     p.add_argument(
         "--resolution",
         type=grid_resolution,
@@ -156,6 +179,21 @@ def run(args: argparse.Namespace) -> int:
     # The scenario and its figure beside it, checked before the plan is made.
     check_file_target(args.out, "--out")
     check_file_target(args.out.with_suffix(".plan.png"), "--out's figure")
+    map_options = {
+        key: value
+        for key, value in (
+            ("wall_layers", args.wall_layers),
+            ("obstacle_layers", args.obstacle_layers),
+        )
+        if value is not None
+    }
+    if map_options and args.map.suffix.lower() != ".dxf":
+        option = "--wall-layers" if args.wall_layers is not None else "--obstacle-layers"
+        console.print(
+            f"[red]error:[/red] {option}: a DXF map's layers; {escape(str(args.map))} is "
+            "not a .dxf file"
+        )
+        return 2
     start = None
     if args.start is not None:
         x, y, yaw = args.start
@@ -178,6 +216,8 @@ def run(args: argparse.Namespace) -> int:
             repairs=args.repairs,
             repair_seconds=SECONDS,
             tried=lambda attempt: print_attempt(attempt, console),
+            ceiling_height=args.ceiling_height,
+            map_options=map_options,
         )
     except (MapError, ValueError) as exc:
         console.print(f"[red]error:[/red] {escape(str(exc))}")
@@ -204,6 +244,15 @@ def run(args: argparse.Namespace) -> int:
         f"{plan.pose.y:.2f}) heading {math.degrees(plan.pose.yaw):.1f} deg"
     )
     console.print(f"scenario: {written.path}; figure: {written.figure}")
+    code = 0
+    if plan.unreachable:
+        console.print(
+            "[yellow]warning:[/yellow] the robots cannot reach these cameras' floor views from "
+            "the start (left out of the plan; the map's frame, m):"
+        )
+        for cam, why in plan.unreachable.items():
+            console.print(f"  {cam} {escape(why)}")
+        code = 1
     kept = sum(a.kept for a in written.repairs)
     if written.repairs:
         console.print(f"{len(written.repairs)} repairs tried, {kept} kept")
@@ -223,8 +272,8 @@ def run(args: argparse.Namespace) -> int:
             console.print(f"  {cam}: {escape(why)}")
         return 1
     if kept:
-        console.print("every camera is calibrated by the repaired plan")
-    return 0
+        console.print("every camera of the plan is calibrated by the repaired plan")
+    return code
 
 
 def print_attempt(attempt: Attempt, console: Console) -> None:

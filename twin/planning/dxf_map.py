@@ -3,7 +3,10 @@
 What is read, in the drawing's model space (block references are exploded, and an
 entity on layer ``0`` inside a block takes the reference's layer):
 
-- wall layers (by default every layer whose name contains ``wall``, any case): lines,
+- wall layers (by default every layer whose name holds a word for walls, any case:
+  ``wall`` anywhere in it, as in the AIA's ``A-WALL``, or one of :data:`WALL_WORDS`, the
+  German, French, Spanish and Italian words, as a word of the name; German compounds
+  ending in one, ``Innenwand``, count too): lines,
   polylines (open or closed), arcs, circles, ellipses and splines are wall centre lines,
   thickened by ``wall_thickness`` (flat ends, so a door left open in the drawing stays as
   wide as drawn);
@@ -21,6 +24,8 @@ WCS), converted to m by ``units`` (the header's ``$INSUNITS`` unless given).
 from __future__ import annotations
 
 import math
+import re
+import unicodedata
 from collections import Counter
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -43,10 +48,43 @@ __all__ = [
     "DEFAULT_OBSTACLE_KEYWORDS",
     "DEFAULT_WALL_KEYWORDS",
     "INSUNITS_METRES",
+    "WALL_WORDS",
+    "is_wall_layer",
     "load_dxf_map",
 ]
 
 DEFAULT_WALL_KEYWORDS = ("wall",)
+"""Found anywhere in a layer's name (``Walls``, ``A-WALL-FULL``, ``Interior walls``)."""
+WALL_WORDS = (
+    # German
+    "wand",
+    "wände",
+    "waende",
+    "mauer",
+    "mauern",
+    # French
+    "mur",
+    "murs",
+    "cloison",
+    "cloisons",
+    # Spanish
+    "muro",
+    "muros",
+    "pared",
+    "paredes",
+    "tabique",
+    "tabiques",
+    # Italian
+    "muri",
+    "parete",
+    "pareti",
+    "tramezzo",
+    "tramezzi",
+)
+"""Words for walls a layer's name may hold as a word of its own (split at anything that
+is not a letter or a digit, ``Wände_tragend``, ``MUR-porteur``)."""
+_COMPOUND_WORDS = ("wand", "wände", "waende", "mauer", "mauern")
+"""German words that also end a compound (``Innenwand``, ``Außenwände``, ``Stützmauer``)."""
 DEFAULT_OBSTACLE_KEYWORDS = ("obstacle", "column", "pillar", "furniture")
 
 #: Metres per drawing unit for the DXF header's ``$INSUNITS`` codes.
@@ -73,8 +111,23 @@ _CURVES = {"LINE", "LWPOLYLINE", "POLYLINE", "ARC", "CIRCLE", "ELLIPSE", "SPLINE
 _MAX_BLOCK_DEPTH = 16
 
 
+def is_wall_layer(name: str) -> bool:
+    """Whether a layer's name says it holds walls, by default (see the module)."""
+    text = unicodedata.normalize("NFC", name).casefold()
+    if any(k in text for k in DEFAULT_WALL_KEYWORDS):
+        return True
+    words = [w for w in re.split(r"[\W_]+", text) if w]
+    return any(w in WALL_WORDS or w.endswith(_COMPOUND_WORDS) for w in words)
+
+
 def _layer_matcher(layers: Iterable[str] | None, keywords: Sequence[str]) -> tuple[Any, str]:
     """A predicate on layer names and a description of it for messages."""
+    if layers is None and keywords == DEFAULT_WALL_KEYWORDS:
+        return is_wall_layer, (
+            "layers whose name contains 'wall' or holds a German, French, Spanish or "
+            "Italian word for walls (Wand, Wände, Mauer, mur, cloison, muro, pared, tabique, "
+            "parete...)"
+        )
     if layers is None:
         words = tuple(k.lower() for k in keywords)
         return (
@@ -83,8 +136,10 @@ def _layer_matcher(layers: Iterable[str] | None, keywords: Sequence[str]) -> tup
         )
     if isinstance(layers, str):
         layers = [layers]
-    names = {str(n).lower() for n in layers}
-    return (lambda name: name.lower() in names), "layers " + ", ".join(sorted(names))
+    names = {unicodedata.normalize("NFC", str(n)).casefold() for n in layers}
+    return (
+        lambda name: unicodedata.normalize("NFC", name).casefold() in names
+    ), "layers " + ", ".join(sorted(names))
 
 
 def _entities(container: Iterable[Any], layer: str | None = None, depth: int = 0) -> Iterator:
@@ -143,7 +198,7 @@ def load_dxf_map(
     wall_thickness: float = 0.15,
     units: str | float | None = None,
     heights: dict[str, float] | None = None,
-    height: float = 3.0,
+    height: float | None = None,
     keep: str = "largest",
     min_area: float = 0.05,
     arc_tolerance: float = 0.005,
@@ -163,7 +218,8 @@ def load_dxf_map(
             or unitless.
         heights: height above the floor by layer name (any case), m; layers not named
             stand ``math.inf`` high (to the ceiling).
-        height: the ceiling's height above the floor, m.
+        height: the ceiling's height above the floor, m; default none known (3 m
+            written, :attr:`FloorMap.height_known` false).
         keep: ``"largest"`` (the largest connected piece of free floor) or ``"all"``
             (every piece of at least ``min_area``).
         min_area: pieces of free floor smaller than this are left out with
@@ -264,10 +320,14 @@ def load_dxf_map(
 
     if not wall_lines:
         listing = ", ".join(f"{name} ({n})" for name, n in sorted(found.items())) or "none"
+        empty = sorted(str(layer.dxf.name) for layer in doc.layers if not found[layer.dxf.name])
+        if empty:
+            listing += "; layers with none: " + ", ".join(empty)
         raise MapError(
             path,
             f"no wall: no line, polyline, arc or circle on a layer read as walls; the file's "
-            f"layers with entities: {listing}; expected the walls on {wall_rule}",
+            f"layers with entities: {listing}; expected the walls on {wall_rule}: name the "
+            "layers that hold the walls with --wall-layers NAME [NAME ...]",
         )
 
     walls: list[MapObstacle] = []
@@ -309,7 +369,8 @@ def load_dxf_map(
     return FloorMap(
         free=free,
         obstacles=tuple(walls + obstacles),
-        height=float(height),
+        height=3.0 if height is None else float(height),
         source=str(path),
         notes=tuple(notes),
+        height_known=height is not None,
     )

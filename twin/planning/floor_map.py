@@ -53,6 +53,8 @@ class FloorMap:
         source: the file it was read from.
         options: the reader's keyword options it was read with (:func:`twin.planning.maps.
             load_map`'s), so that the same floor can be read again.
+        height_known: whether ``height`` is the map's own (a mesh's top, or one the reader
+            was given) rather than a default.
     """
 
     free: Polygon | MultiPolygon
@@ -61,6 +63,7 @@ class FloorMap:
     source: str = "<map>"
     notes: tuple[str, ...] = field(default=())
     options: dict[str, Any] = field(default_factory=dict)
+    height_known: bool = False
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:

@@ -247,6 +247,7 @@ def load_mesh_map(
         free=free,
         obstacles=tuple(obstacles),
         height=top - floor,
+        height_known=True,
         source=str(path),
         notes=(
             f"floor at z = {floor:.4g} m"

@@ -307,7 +307,7 @@ def load_ros_map(
     *,
     min_area: float = 0.05,
     keep: str = "all",
-    height: float = 3.0,
+    height: float | None = None,
 ) -> FloorMap:
     """Read a ROS occupancy grid (map_server YAML + PGM/PNG) into a :class:`FloorMap`.
 
@@ -317,7 +317,8 @@ def load_ros_map(
             notes), m^2.
         keep: ``"all"`` (the largest region and every other of at least ``min_area``) or
             ``"largest"`` (only the largest connected region).
-        height: the ceiling's height above the floor (a grid has none), m.
+        height: the ceiling's height above the floor, m; default none known (a grid has
+            none: 3 m written, :attr:`FloorMap.height_known` false).
 
     Returns:
         ``free``: the union of the free cells in the map frame (a Polygon, or a
@@ -361,9 +362,10 @@ def load_ros_map(
     return FloorMap(
         free=free,
         obstacles=obstacles,
-        height=float(height),
+        height=3.0 if height is None else float(height),
         source=str(path),
         notes=cell_notes + notes,
+        height_known=height is not None,
     )
 
 

@@ -29,24 +29,36 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 import yaml
 from numpy.typing import NDArray
-from shapely.geometry import LineString, Point
+from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from calib.io.text import read_text, yaml_load
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
+from twin.planning.ceiling import check_ceiling, site_ceiling
 from twin.planning.floor_map import FloorMap, MapError
 from twin.planning.frames import MapPose
 from twin.planning.map_files import map_sha256
+from twin.planning.regions import (
+    CHILD_CLEARANCE,
+    children_at,
+    floor_pieces,
+    group_start,
+    main_piece,
+    piece_at,
+    unreachable_why,
+    view_counts,
+)
 from twin.planning.route import NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
 from twin.scenario.errors import ScenarioError
-from twin.scenario.geometry import inside_obstacles
+from twin.scenario.geometry import floor_view, inside_obstacles
 from twin.scenario.loader import validate_model
 from twin.scenario.map_space import map_obstacle
-from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT, PIONEER3DX
+from twin.scenario.robots import INSTRUMENT_HEIGHT, PIONEER3AT
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
 
 FORMATION_CLEARANCE = PIONEER3AT.radius + 0.35
@@ -78,9 +90,6 @@ START_PRISM_OFF_ROUTE = 0.8
 START_PRISM_SIGHT = 8.0
 """The parent measures it from every station this close, m."""
 
-CHILD_OFFSETS = ((1.5, 1.5), (1.5, -1.5), (-1.5, 1.5), (-1.5, -1.5), (2.5, 1.0), (2.5, -1.0))
-"""Where the children may start, (x, y) m from the parent in W; the first two that fit."""
-
 CAMERA_KEYS = (
     "name",
     "position",
@@ -108,7 +117,9 @@ class SitePlan:
         stations: each camera's station, by camera name.
         order: the visits' cameras, in order.
         route: (K, 2) the parent's route in W, m.
-        floor: the map.
+        floor: the map (with the plan's ceiling).
+        unreachable: the cameras left out, each with where it is and why the robots cannot
+            reach its floor view from the start (map frame).
     """
 
     scenario: dict[str, Any]
@@ -118,6 +129,7 @@ class SitePlan:
     order: tuple[str, ...]
     route: NDArray[np.float64]
     floor: FloorMap
+    unreachable: dict[str, str] = dataclasses.field(default_factory=dict)
 
 
 def read_cameras(path: str | Path) -> list[dict[str, Any]]:
@@ -189,6 +201,7 @@ def plan_site(
     map_file: str = "",
     seed: int = 1,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
+    ceiling_height: float | None = None,
 ) -> SitePlan:
     """Plan the campaign of ``cameras`` on ``floor`` (see the module).
 
@@ -205,10 +218,17 @@ def plan_site(
         avoid: by camera name, (x, y) places in the map's frame, m, that the camera's
             station keeps :data:`twin.planning.stations.AVOID_RADIUS` from (where a run of an
             earlier plan failed: :mod:`twin.planning.repair`); default none.
+        ceiling_height: the ceiling above the floor, m
+            (default: :func:`twin.planning.ceiling.site_ceiling`).
+
+    Returns:
+        The plan of the cameras the robots can reach from the start; the others are in
+        :attr:`SitePlan.unreachable`, each with why (:mod:`twin.planning.regions`).
 
     Raises:
-        MapError: a camera outside the map, no station for a camera, no path between two
-            stations, a start off the floor; the message names it.
+        MapError: a camera outside the map or at or above the ceiling, no station for a
+            camera, no path between two stations, a start off the floor or without room for
+            the children, no camera reachable; the message names it, in the map's frame.
     """
     names = [str(c["name"]) for c in cameras]
     if len(set(names)) != len(names):
@@ -227,11 +247,19 @@ def plan_site(
         unknown = sorted(set(wanted) - set(names))
         if unknown:
             raise MapError(floor.source, f"visits name unknown cameras {unknown}; known {names}")
+    ceiling = site_ceiling(floor, cameras, ceiling_height)
+    check_ceiling(floor, cameras, ceiling, given=ceiling_height is not None)
+    floor = dataclasses.replace(floor, height=ceiling)
     parent_free = floor.reachable(FORMATION_CLEARANCE)
     if parent_free.is_empty:
         raise MapError(floor.source, "no floor is wide enough for the robots")
-    station_free = (floor.reachable(STATION_CLEARANCE), parent_free)
     floor_z = -INSTRUMENT_HEIGHT
+    parent_free, unreachable = _region(floor, cameras, parent_free, start, floor_z)
+    cameras = [c for c in cameras if str(c["name"]) not in unreachable]
+    names = [str(c["name"]) for c in cameras]
+    if wanted is not None:
+        wanted = [c for c in wanted if c not in unreachable]
+    station_free = (floor.reachable(STATION_CLEARANCE).intersection(parent_free), parent_free)
     chosen = list(dict.fromkeys(wanted if wanted is not None else names))
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
@@ -241,7 +269,7 @@ def plan_site(
         )
         graph = RouteGraph(parent_free)
         first, second = _first_two(graph, in_map, wanted, floor.source)
-        pose = MapPose(*_lead_in(first, second, parent_free), 0.0)
+        pose = MapPose(*_group_start(floor, parent_free, _lead_in(first, second, parent_free)), 0.0)
         stations = {
             k: dataclasses.replace(
                 st, xy=pose.map2world(st.xy), view_centre=pose.map2world(st.view_centre)
@@ -250,12 +278,6 @@ def plan_site(
         }
     else:
         x, y, yaw = (float(v) for v in start)
-        if not parent_free.contains(Point(x, y)):
-            raise MapError(
-                floor.source,
-                f"the start ({x:.2f}, {y:.2f}) is not on the floor with the robots' "
-                f"clearance ({FORMATION_CLEARANCE:.2f} m from every wall and obstacle)",
-            )
         pose = MapPose(x, y, yaw)
         stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid)
     boxed = boxed_space(floor, pose, resolution)
@@ -302,7 +324,7 @@ def plan_site(
             "resolution": resolution,
         },
     )
-    return SitePlan(scenario, pose, boxed, stations, tuple(sequence), route, floor)
+    return SitePlan(scenario, pose, boxed, stations, tuple(sequence), route, floor, unreachable)
 
 
 def _route_graph(
@@ -620,15 +642,112 @@ def _start_prism(
 
 
 def _children(floor: FloorMap, pose: MapPose) -> list[NDArray[np.float64]]:
-    free = pose.geometry2world(floor.reachable(PIONEER3DX.radius + 0.1))
-    out: list[NDArray[np.float64]] = []
-    for offset in CHILD_OFFSETS:
-        xy = np.asarray(offset, dtype=float)
-        if free.contains(Point(*xy)) and all(np.linalg.norm(xy - o) > 1.0 for o in out):
-            out.append(xy)
-        if len(out) == 2:
-            return out
-    raise MapError(floor.source, "no room beside the start for the two children")
+    """The children's starts in W (:func:`twin.planning.regions.children_at`)."""
+    out = children_at(floor.reachable(CHILD_CLEARANCE), (pose.x, pose.y), pose.yaw)
+    if out is None:  # the start was checked for room: not reached
+        raise MapError(floor.source, _no_room(pose.x, pose.y))
+    return out
+
+
+def _no_room(x: float, y: float) -> str:
+    return (
+        f"no room beside the start ({x:.2f}, {y:.2f}) in the map's frame for the two "
+        f"children: each stands {CHILD_CLEARANCE:.2f} m clear of walls, 1.2 to 2.5 m from "
+        "the parent in plain sight of it"
+    )
+
+
+def _region(
+    floor: FloorMap,
+    cameras: Sequence[Mapping[str, Any]],
+    parent_free: BaseGeometry,
+    start: tuple[float, float, float] | None,
+    floor_z: float,
+) -> tuple[Polygon, dict[str, str]]:
+    """The piece of ``parent_free`` the plan keeps to (the given start's, else the one
+    most cameras' floor views lie on) and the cameras whose view lies elsewhere, each with
+    where it is and why (:mod:`twin.planning.regions`).
+
+    Raises:
+        MapError: a given start off the floor, on a piece no camera's view lies on, or
+            without room for the children; no camera reachable. The message gives the
+            place in the map's frame and a ``--start`` that works where one is found.
+    """
+    pieces = floor_pieces(parent_free)
+    views = {str(c["name"]): _floor_view(floor, c, floor_z) for c in cameras}
+    counts = view_counts(pieces, views, FORMATION_CLEARANCE)
+    main = main_piece(pieces, counts)
+    region = main
+    if start is not None:
+        x, y, yaw = (float(v) for v in start)
+        child_free = floor.reachable(CHILD_CLEARANCE)
+        at = piece_at(pieces, (x, y))
+        if at is None or not parent_free.contains(Point(x, y)):
+            why = (
+                f"the start ({x:.2f}, {y:.2f}) in the map's frame is not on the floor with the "
+                f"robots' clearance ({FORMATION_CLEARANCE:.2f} m from every wall and obstacle)"
+            )
+        elif not any(c[at] > 0 for c in counts.values()):
+            area = pieces[at].area
+            why = (
+                f"the start ({x:.2f}, {y:.2f}) in the map's frame is on a piece of floor "
+                f"({area:.1f} m^2) that no camera's floor view lies on"
+            )
+        elif children_at(child_free, (x, y), yaw) is None:
+            why = _no_room(x, y)
+        else:
+            why = ""
+            region = at
+        if why:
+            place = group_start(pieces[main], child_free, (x, y), yaw)
+            hint = (
+                f"; try --start {place[0]:.2f} {place[1]:.2f} {math.degrees(yaw):g}"
+                if place is not None
+                else "; no place on the floor the cameras look at has room for the group"
+            )
+            raise MapError(floor.source, why + hint)
+    unreachable: dict[str, str] = {}
+    for cam in cameras:
+        cam_name = str(cam["name"])
+        why = unreachable_why(
+            floor, pieces, region, counts[cam_name], views[cam_name], FORMATION_CLEARANCE
+        )
+        if why is not None:
+            x, y = np.asarray(cam["position"], dtype=float)[:2]
+            unreachable[cam_name] = f"at ({x:.2f}, {y:.2f}): {why}"
+    if len(unreachable) == len(cameras):
+        listing = "; ".join(f"{k} {v}" for k, v in unreachable.items())
+        raise MapError(floor.source, f"the robots can reach no camera's floor view: {listing}")
+    return pieces[region], unreachable
+
+
+def _floor_view(floor: FloorMap, cam: Mapping[str, Any], floor_z: float) -> NDArray[np.float64]:
+    """(N, 2) the camera's floor-view points on the map's free floor, map frame, m."""
+    camera = validate_model(CameraConfig, _camera_in_world(cam, MapPose(), floor_z)).tsai()
+    view = floor_view(camera, floor_z, max_range=60.0)[:, :2]
+    if len(view) == 0:
+        return view
+    return view[shapely.contains_xy(floor.free, view[:, 0], view[:, 1])]
+
+
+def _group_start(
+    floor: FloorMap, region: BaseGeometry, near: tuple[float, float]
+) -> tuple[float, float]:
+    """The automatic start: the place of ``region`` nearest ``near`` where the group fits
+    (:func:`twin.planning.regions.group_start`).
+
+    Raises:
+        MapError: none near, naming ``near`` in the map's frame and ``--start``.
+    """
+    place = group_start(region, floor.reachable(CHILD_CLEARANCE), near)
+    if place is None:
+        raise MapError(
+            floor.source,
+            f"no place near ({near[0]:.2f}, {near[1]:.2f}) in the map's frame, before the "
+            "first station, has room for the parent and both children: give --start X Y "
+            "YAW_DEG at a place with room",
+        )
+    return place
 
 
 def _scenario(

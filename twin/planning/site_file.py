@@ -65,11 +65,15 @@ def write_site(
     repairs: int = ATTEMPTS,
     repair_seconds: float = SECONDS,
     tried: Callable[[Attempt], None] | None = None,
+    ceiling_height: float | None = None,
+    map_options: dict[str, Any] | None = None,
 ) -> WrittenSite:
     """Plan a site and write its scenario (TOML) and figure.
 
     ``data_stops`` is the scenario's ``campaign.data_stops``: ``accuracy`` plans the child's
     data points for the camera's accuracy (:mod:`twin.campaign.plan.accurate_stops`).
+    ``ceiling_height`` goes to :func:`plan_site`, ``map_options`` to the map's reader
+    (:func:`twin.planning.maps.load_map`).
 
     With ``predict``, the plan is run once noise-free at the geometric fidelity, and where
     that run drops a visit the plan is repaired (:func:`twin.planning.repair.repair_plan`:
@@ -86,7 +90,7 @@ def write_site(
     if out.exists() and not overwrite:
         raise ValueError(f"{out} exists: give --overwrite to replace it")
     map_path = Path(map_path)
-    floor = load_map(map_path)
+    floor = load_map(map_path, **(map_options or {}))
     cameras = read_cameras(cameras_path)
     map_ref = _relative(map_path, out.parent)
 
@@ -101,6 +105,7 @@ def write_site(
             resolution=resolution,
             map_file=map_ref,
             avoid=fix.avoid,
+            ceiling_height=ceiling_height,
         )
         campaign: dict[str, Any] = {}
         if data_stops != "all_leds":

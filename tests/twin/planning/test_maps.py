@@ -407,7 +407,9 @@ def test_dxf_no_wall_layer_names_the_layers(tmp_path: Path):
         load_map(path)
     message = str(info.value)
     assert "the file's layers with entities: Columns (1), Text (1), furniture (1)" in message
-    assert message.endswith("expected the walls on layers whose name contains 'wall'")
+    assert "layers with none: 0, A-WALL, Defpoints, Interior walls;" in message
+    assert "expected the walls on layers whose name contains 'wall' or holds" in message
+    assert message.endswith("with --wall-layers NAME [NAME ...]")
     assert "wall_layers" not in message  # an argument of the Python function only
 
 
