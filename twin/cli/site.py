@@ -36,8 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "run once noise-free at the geometric fidelity and, where that run drops a "
             "visit, repaired (another station, shorter legs, another visit order) until "
             "every camera is calibrated or the repairs run out. Exit code 0 when every "
-            "camera is calibrated; 1 when one is not (named with why, the best plan "
-            "written); 2 for a bad map, cameras file or plan (named, nothing written)."
+            "camera is calibrated; 1 when cameras are left out (the robots cannot reach "
+            "their floor views from the start) or one is not calibrated (named with why, "
+            "the best plan written); 2 for a bad map, cameras file or plan (named, nothing "
+            "written)."
         ),
     )
     p.add_argument("map", type=Path, help="map.yaml, a .dxf, or a mesh (.obj .stl .ply .gltf .glb)")
@@ -170,8 +172,9 @@ def visit_order(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Plan; exit code 0, 1 when the plan's geometric run, repaired, does not calibrate
-    every camera (the best plan is written), 2 for bad input."""
+    """Plan; exit code 0, 1 when cameras are left out as out of the robots' reach or the
+    plan's geometric run, repaired, does not calibrate every camera (the best plan is
+    written), 2 for bad input."""
     from twin.planning.floor_map import MapError
     from twin.planning.site_file import write_site
 

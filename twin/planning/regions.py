@@ -7,7 +7,7 @@ piece most cameras belong to), and names every camera of the others with why: it
 on a separate piece of floor, or beyond a passage narrower than the robots need, or on
 floor too narrow for them.
 
-The group starts where the parent and both children fit: the children stand 1.2 to 2.5 m
+The group starts where the parent and both children fit: the children stand 1.2 to 2.7 m
 from the parent, clear of walls, in plain sight of it.
 
 Everything is in the map's frame (x, y in m) unless said otherwise.

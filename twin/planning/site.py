@@ -652,7 +652,7 @@ def _children(floor: FloorMap, pose: MapPose) -> list[NDArray[np.float64]]:
 def _no_room(x: float, y: float) -> str:
     return (
         f"no room beside the start ({x:.2f}, {y:.2f}) in the map's frame for the two "
-        f"children: each stands {CHILD_CLEARANCE:.2f} m clear of walls, 1.2 to 2.5 m from "
+        f"children: each stands {CHILD_CLEARANCE:.2f} m clear of walls, 1.2 to 2.7 m from "
         "the parent in plain sight of it"
     )
 
@@ -687,7 +687,7 @@ def _region(
                 f"the start ({x:.2f}, {y:.2f}) in the map's frame is not on the floor with the "
                 f"robots' clearance ({FORMATION_CLEARANCE:.2f} m from every wall and obstacle)"
             )
-        elif not any(c[at] > 0 for c in counts.values()):
+        elif not any(c.sum() > 0 and c[at] >= c.max() for c in counts.values()):
             area = pieces[at].area
             why = (
                 f"the start ({x:.2f}, {y:.2f}) in the map's frame is on a piece of floor "

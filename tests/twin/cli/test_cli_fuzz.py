@@ -250,6 +250,8 @@ def argv_parts(edges: bool) -> dict[str, tuple[st.SearchStrategy[list[str]], ...
             opt("--visits", pick(["cam1,cam2", "cam2"], ["", ",", "cam9", "cam1,,cam1"])),
             flag("--return-to-start"),
             opt("--resolution", pick(["0.1", "0.2"], NUMBERS)),
+            opt("--ceiling-height", pick(["2.5", "4"], NUMBERS)),
+            opt("--wall-layers", pick(["wall"], ["", "-x"])),
             opt("--data-stops", pick(["all_leds", "accuracy"])),
             opt("--name", pick(["room"], ["", "a/b"])),
             opt("--repairs", pick(["0", "3"], NUMBERS)),
