@@ -203,11 +203,16 @@ def _offsets() -> list[NDArray[np.float64]]:
 
 
 def group_start(
-    region: BaseGeometry, child_free: BaseGeometry, near: ArrayLike, yaw: float = 0.0
+    region: BaseGeometry,
+    child_free: BaseGeometry,
+    near: ArrayLike,
+    yaw: float = 0.0,
+    spacing: float = START_SPACING,
+    tries: int = START_TRIES,
 ) -> tuple[float, float] | None:
-    """The place of ``region`` nearest ``near`` (on a :data:`START_SPACING` grid,
-    ``near`` itself first) where the parent and both children fit heading ``yaw``; None
-    if none of the :data:`START_TRIES` nearest does.
+    """The place of ``region`` nearest ``near`` (on a grid of ``spacing`` m, ``near``
+    itself first) where the parent and both children fit heading ``yaw``; None if none of
+    the ``tries`` nearest does.
 
     Args:
         region: where the parent's start may be, map frame. child_free: where a child's
@@ -216,14 +221,14 @@ def group_start(
     near = np.asarray(near, dtype=float)[:2]
     shapely.prepare(child_free)
     x0, y0, x1, y1 = region.bounds
-    xs = np.arange(x0, x1 + START_SPACING, START_SPACING)
-    ys = np.arange(y0, y1 + START_SPACING, START_SPACING)
+    xs = np.arange(x0, x1 + spacing, spacing)
+    ys = np.arange(y0, y1 + spacing, spacing)
     gx, gy = np.meshgrid(xs, ys)
     pts = np.vstack([near, np.column_stack([gx.ravel(), gy.ravel()])])
     shapely.prepare(region)
     pts = pts[shapely.contains_xy(region, pts[:, 0], pts[:, 1])]
     order = np.argsort(np.linalg.norm(pts - near, axis=1), kind="stable")
-    pts = pts[order[:START_TRIES]]
+    pts = pts[order[:tries]]
     for p in pts:
         if children_at(child_free, p, yaw) is not None:
             return float(p[0]), float(p[1])

@@ -734,18 +734,22 @@ def _group_start(
     floor: FloorMap, region: BaseGeometry, near: tuple[float, float]
 ) -> tuple[float, float]:
     """The automatic start: the place of ``region`` nearest ``near`` where the group fits
-    (:func:`twin.planning.regions.group_start`).
+    (:func:`twin.planning.regions.group_start`), else anywhere on ``region`` (on a 1 m
+    grid).
 
     Raises:
-        MapError: none near, naming ``near`` in the map's frame and ``--start``.
+        MapError: none, naming ``near`` in the map's frame and ``--start``.
     """
-    place = group_start(region, floor.reachable(CHILD_CLEARANCE), near)
+    child_free = floor.reachable(CHILD_CLEARANCE)
+    place = group_start(region, child_free, near)
+    if place is None:
+        place = group_start(region, child_free, near, spacing=1.0, tries=2000)
     if place is None:
         raise MapError(
             floor.source,
-            f"no place near ({near[0]:.2f}, {near[1]:.2f}) in the map's frame, before the "
-            "first station, has room for the parent and both children: give --start X Y "
-            "YAW_DEG at a place with room",
+            f"no place on the floor the cameras look at, around ({near[0]:.2f}, "
+            f"{near[1]:.2f}) in the map's frame before the first station, has room for the "
+            "parent and both children: give --start X Y YAW_DEG at a place with room",
         )
     return place
 
