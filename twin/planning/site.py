@@ -3,8 +3,10 @@
 From a floor map (:mod:`twin.planning.maps`) and the cameras as installed (their
 approximate poses and nominal intrinsics, in the map's frame), the planner:
 
-1. takes the parent's start (given, or the reachable place nearest the middle of the
-   cameras' floor views, heading along the map's x-axis) as the world frame W;
+1. keeps to the floor the parent reaches from its start (:mod:`twin.planning.regions`:
+   the cameras whose floor view lies elsewhere are left out, named with why) and takes
+   the start (given, or before the first station where the group fits, heading along the
+   map's x-axis) as the world frame W;
 2. lays the map's blocked floor as boxes in W (:mod:`twin.planning.boxes`), which the
    scenario does not write out: it references the map (``[space.map]``) and its hash;
 3. chooses each camera's station (:mod:`twin.planning.stations`);
@@ -259,6 +261,11 @@ def plan_site(
     names = [str(c["name"]) for c in cameras]
     if wanted is not None:
         wanted = [c for c in wanted if c not in unreachable]
+        if not wanted:
+            listing = "; ".join(f"{k} {v}" for k, v in unreachable.items())
+            raise MapError(
+                floor.source, f"the robots can reach no camera of the visits given: {listing}"
+            )
     station_free = (floor.reachable(STATION_CLEARANCE).intersection(parent_free), parent_free)
     chosen = list(dict.fromkeys(wanted if wanted is not None else names))
     if start is None:

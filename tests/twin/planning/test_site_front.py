@@ -106,6 +106,13 @@ def test_a_camera_on_a_separate_room_is_named_and_the_rest_planned(tmp_path, cap
     sc = load_scenario(out)
     assert [c.name for c in sc.cameras] == ["cam2"]
     assert [v.camera for v in sc.calibration.visits] == ["cam2"]
+    # Visits of the unreachable camera alone: nothing to plan, refused by name.
+    only = tmp_path / "only.toml"
+    assert site(grid, cams, only, "--visits", "cam1") == 2
+    assert "the robots can reach no camera of the visits given: cam1 at (9.00, 6.00)" in said(
+        capsys
+    )
+    assert not only.exists()
 
 
 def test_a_camera_behind_a_passage_narrower_than_the_robots_is_named_with_the_place(
@@ -288,3 +295,37 @@ def test_layer_options_on_a_map_that_is_no_dxf_are_refused(tmp_path, capsys):
     assert site(grid, cams, out, "--obstacle-layers", "Columns") == 2
     assert "--obstacle-layers: a DXF map's layers" in said(capsys)
     assert not out.exists()
+
+
+def test_a_camera_above_a_meshs_own_ceiling_is_refused_naming_the_maps_height():
+    from twin.planning.ceiling import check_ceiling
+    from twin.planning.floor_map import MapError
+
+    floor = FloorMap(box(0, 0, 5, 5), height=2.6, height_known=True, source="hall.glb")
+    cameras = [{"name": "low", "position": [1, 1, 2.5]}, {"name": "top", "position": [1, 1, 2.8]}]
+    with pytest.raises(MapError) as info:
+        check_ceiling(floor, cameras, site_ceiling(floor, cameras), given=False)
+    message = str(info.value)
+    assert "'top' at 2.80 m" in message
+    assert "'low'" not in message
+    assert "2.60 m (the map's own height)" in message
+
+
+def test_a_view_on_floor_narrower_than_the_robots_is_named_with_its_place():
+    from twin.planning.regions import floor_pieces, unreachable_why, view_counts
+
+    # A 10 x 6 m room and a 1 m wide dead-end corridor off it, x 10 to 16.
+    floor = FloorMap(box(0, 0, 10, 6).union(box(9.9, 2.5, 16, 3.5)))
+    pieces = floor_pieces(floor.reachable(0.7))
+    assert len(pieces) == 1
+    view = np.column_stack([np.linspace(13, 15, 20), np.full(20, 3.0)])
+    counts = view_counts(pieces, {"c": view}, 0.7)["c"]
+    why = unreachable_why(floor, pieces, 0, counts, view, 0.7)
+    assert why == (
+        "its floor view lies on floor narrower than the robots need (1.40 m) around (14.00, 3.00)"
+    )
+    inside = np.array([[5.0, 3.0], [6.0, 3.0]])
+    assert (
+        unreachable_why(floor, pieces, 0, view_counts(pieces, {"c": inside}, 0.7)["c"], inside, 0.7)
+        is None
+    )
