@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
 from twin.campaign.plan.accurate_stops import choose_stops, partial_view_stops
-from twin.campaign.plan.formation import formation, sight_margins
+from twin.campaign.plan.formation import corner_formation, formation, sight_margins
 from twin.campaign.plan.legs import leg_goals
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
@@ -166,12 +166,49 @@ class PaperStrategy(Strategy):
                 if abs(s_next - s_now) <= SHORTEST_LEG * step:
                     break
                 ends.insert(0, 0.5 * (s_now + s_next))
+        corner = self._around_corner(view, goal, s_now, direction, margins)
+        if corner is not None:
+            return corner
         self._leg_ends = None  # s_next: the shortest leg tried with the nominal margin
         return NoLeg(
             "no_formation",
             f"no place for the children ahead of s = {s_next:.1f} m",
             f"no formation for the leg to s = {s_next:.1f} m",
         )
+
+    def _around_corner(
+        self,
+        view: CampaignView,
+        goal: Visit | Return,
+        s_now: float,
+        direction: float,
+        margins: tuple[float, ...],
+    ) -> Leg | None:
+        """Where the staggered formation has no room ahead of any leg's end (around a turn
+        its places lie round the corner, hidden from where the parent stands), a leg with
+        the children anywhere both stations see (:func:`twin.campaign.plan.formation.
+        corner_formation`): to the planned leg's end, then to each of the route's corners
+        before it (the parent on a corner sees along both of its legs), farthest first,
+        then to shorter legs. None where none is found."""
+        assert self._leg_ends is not None
+        ends = list(self._leg_ends)
+        s_end, step = ends[0], self._step(view)
+        lo, hi = sorted((s_now, s_end))
+        corners = [float(s) for s in self.path.starts[1:-1] if lo + ARRIVED < s < hi - ARRIVED]
+        candidates = [s_end, *sorted(corners, key=lambda s: -direction * s)]
+        for k in range(1, halvings(abs(s_end - s_now), SHORTEST_LEG * step) + 1):
+            candidates.append(s_now + (s_end - s_now) / 2**k)
+        form = view.scenario.campaign.formation
+        for s_next in candidates:
+            arrives = s_next == s_end and len(ends) == 1
+            found = self.leg_between(
+                view, goal, s_now, s_next, arrives, direction, form, margins, corner=True
+            )
+            if found is not None:
+                self._leg_ends = ends[1:] if s_next == s_end else ends
+                self._reached_s = s_next
+                return found[1]
+        return None
 
     def _follow_parent(self, parent_xy: NDArray[np.float64]) -> None:
         """After a leg the parent fixed its pose: the group is where it stands (``_arc``)."""
@@ -189,6 +226,7 @@ class PaperStrategy(Strategy):
         direction: float,
         form: FormationSettings,
         margins: tuple[float, ...] | None = None,
+        corner: bool = False,
     ) -> tuple[int, Leg] | None:
         """The leg from arc length ``s_now`` to ``s_next`` (the goal's station if
         ``arrives``) with the children in formation ``form``, or None where they have no
@@ -202,20 +240,34 @@ class PaperStrategy(Strategy):
         parent_xy = view.parent.translation[:2]
         next_xy = goal.station if arrives else path.at(s_next)
         order = self._children_in_order(view, direction)
-        found = formation(
-            view.scenario.space,
-            self.marker.cubes_body,
-            view.instrument_range,
-            path,
-            s_next,
-            parent_xy,
-            next_xy,
-            direction,
-            form,
-            float(view.parent.translation[2]),
-            view.robot_pose(order[1])[:2],
-            margins,
-        )
+        if corner:
+            found = corner_formation(
+                view.scenario.space,
+                self.marker.cubes_body,
+                view.instrument_range,
+                path,
+                s_next,
+                [parent_xy, *path.vertices_between(s_now, s_next), next_xy],
+                direction,
+                float(view.parent.translation[2]),
+                view.robot_pose(order[1])[:2],
+                margins,
+            )
+        else:
+            found = formation(
+                view.scenario.space,
+                self.marker.cubes_body,
+                view.instrument_range,
+                path,
+                s_next,
+                parent_xy,
+                next_xy,
+                direction,
+                form,
+                float(view.parent.translation[2]),
+                view.robot_pose(order[1])[:2],
+                margins,
+            )
         if found is None:
             return None
         kept, stops = found

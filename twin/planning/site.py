@@ -77,6 +77,11 @@ ROUTE_CLEARANCES = (STATION_CLEARANCE, 1.25, 1.0, 0.85)
 a route 1.5 m clear cannot leave it, and one 1 m clear still keeps the formation's lines of
 sight off the corners that one at the parent's own clearance grazes."""
 
+PASSAGE_CLEARANCE = PIONEER3AT.radius + 0.1
+"""Clearance the route keeps in a passage (a doorway) too narrow for the formation's, m:
+the parent's radius and a margin (a door 0.9 m wide and more). Only where no wider
+clearance joins the start and every station."""
+
 STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
 ``calibration.min_visible_fraction``)."""
@@ -340,9 +345,10 @@ def _route_graph(
     """The graph the route is planned on: the floor shrunk by the widest of
     :data:`ROUTE_CLEARANCES` that holds the start and every station in one piece (the
     route keeps to the middle of corridors, where the instrument sees the children around
-    a corner, and clear of the corners it turns round), else every floor the parent can
-    reach."""
-    for clearance in ROUTE_CLEARANCES:
+    a corner, and clear of the corners it turns round), then the parent's own clearance,
+    then the widest down to :data:`PASSAGE_CLEARANCE` (through a doorway: the route passes
+    its middle), else every floor the parent can reach."""
+    for clearance in (*ROUTE_CLEARANCES, FORMATION_CLEARANCE):
         roomy = pose.geometry2world(floor.reachable(clearance))
         if roomy.is_empty:
             continue
@@ -351,7 +357,37 @@ def _route_graph(
         regions |= {graph.region_of(st.xy) for st in stations.values()}
         if len(regions) == 1 and None not in regions:
             return graph
-    return RouteGraph(reachable)
+    points = [Point(0.0, 0.0), *(Point(*st.xy) for st in stations.values())]
+    passage = _widest_joining(floor, pose, points, PASSAGE_CLEARANCE, FORMATION_CLEARANCE)
+    if passage is None:
+        return RouteGraph(reachable)
+    return RouteGraph(pose.geometry2world(floor.reachable(passage)))
+
+
+PASSAGE_SLACK = 0.02
+"""A route through a passage keeps this much less than the widest clearance that passes
+it, m (at that clearance the passage is a line)."""
+
+
+def _widest_joining(
+    floor: FloorMap, pose: MapPose, points: Sequence[Point], least: float, most: float
+) -> float | None:
+    """The widest clearance from ``least`` to ``most`` (m, to a centimetre, less
+    :data:`PASSAGE_SLACK`) at which the floor holds ``points`` (W) in one piece; None
+    where even ``least`` does not."""
+
+    def joins(clearance: float) -> bool:
+        roomy = pose.geometry2world(floor.reachable(clearance))
+        pieces = getattr(roomy, "geoms", [roomy])
+        return any(all(piece.covers(p) for p in points) for piece in pieces)
+
+    if not joins(least):
+        return None
+    lo, hi = least, most
+    while hi - lo > 0.01:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if joins(mid) else (lo, mid)
+    return max(least, lo - PASSAGE_SLACK)
 
 
 def _stations(

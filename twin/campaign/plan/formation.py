@@ -7,6 +7,7 @@ Planned on the map and the campaign's estimates; nothing is measured here.
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -14,6 +15,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from calib.rotation import wrap_angle
 from twin.campaign.plan.clearance import (
+    CHILD_BODY,
+    PARENT_BODY,
     body_points,
     child_profile,
     in_range,
@@ -202,3 +205,119 @@ def _formation_ok(
         if sep < MIN_SEPARATION:
             return False
     return True
+
+
+CORNER_REACH = 6.0
+"""How far from the parent's next station the children may stand in a formation around a
+corner, m (:func:`corner_formation`)."""
+
+CORNER_PITCH = 0.35
+"""Spacing of the places tried for a child around a corner, m."""
+
+CORNER_AHEAD = 4.0
+"""Progress along the route beyond the parent's next station that counts, m: a child
+farther ahead than this is as good as one this far ahead."""
+
+CORNER_PAIRS = 30
+"""The places tried as the first-moving child's stop around a corner, best first."""
+
+PASSING = PARENT_BODY + CHILD_BODY + 0.1
+"""Distance a child's stop keeps from the parent's drive, m (the two radii and a margin)."""
+
+
+def corner_formation(
+    space: Space,
+    cubes_body: ArrayLike,
+    instrument_range: tuple[float, float],
+    path: RoutePath,
+    s_next: float,
+    parent_way: ArrayLike,
+    direction: float,
+    instrument_z: float,
+    waiting_xy: ArrayLike | None = None,
+    margins: tuple[float, ...] = (SIGHT_MARGIN,),
+) -> tuple[int, list[Stop]] | None:
+    """Stops of the two children anywhere both of the parent's stations see, where the
+    staggered formation ahead of the next station (:func:`formation`) has none: around a
+    turn its places lie round the corner, hidden from where the parent stands now.
+
+    The places tried lie on a grid (:data:`CORNER_PITCH`) within :data:`CORNER_REACH` of
+    the next station, free, in range and in sight of both stations, and clear of the
+    parent's drive (:data:`PASSING`); the pair is the one farthest ahead along the route
+    (up to :data:`CORNER_AHEAD` beyond the next station) that suits both stations as
+    :func:`formation`'s does, the one farther ahead moving first.
+
+    Args:
+        space, cubes_body, instrument_range, path, s_next, direction, instrument_z,
+            waiting_xy, margins: as :func:`formation`.
+        parent_way: (K >= 2, 2) the parent's drive from its station to the next, m.
+
+    Returns:
+        The index of the margin kept in ``margins`` and the stops (the first-moving
+        child's first); or None.
+    """
+    cubes = np.asarray(cubes_body, dtype=float)
+    way = np.asarray(parent_way, dtype=float).reshape(-1, 2)
+    stations = [_instrument(way[0], instrument_z), _instrument(way[-1], instrument_z)]
+    n = int(CORNER_REACH / CORNER_PITCH)
+    axis = CORNER_PITCH * np.arange(-n, n + 1)
+    gx, gy = np.meshgrid(axis, axis)
+    xy = way[-1] + np.column_stack([gx.ravel(), gy.ravel()])
+    xy = xy[np.linalg.norm(xy - way[-1], axis=1) <= CORNER_REACH]
+    xy = xy[robot_fits(space, xy, FORMATION_CLEARANCE)]
+    for inst in stations:
+        xy = xy[np.linalg.norm(xy - inst[:2], axis=1) >= 1.0]
+    xy = xy[_distance_to_polyline(xy, way) >= PASSING]
+    if len(xy) < 2:
+        return None
+    # Seen from both stations at the prisms' mean height (the headings come later).
+    top = np.column_stack([xy, np.full(len(xy), space.floor_z + float(cubes[:, 2].mean()))])
+    for inst in stations:
+        d = np.linalg.norm(top - inst, axis=1)
+        seen = in_range(d, instrument_range) & sight_clear(space, inst, top, margins[-1])
+        xy, top = xy[seen], top[seen]
+    if len(xy) < 2:
+        return None
+    ahead = np.array([direction * (path.project(p, near=s_next) - s_next) for p in xy])
+    off = np.array([np.linalg.norm(path.at(path.project(p, near=s_next)) - p) for p in xy])
+    score = np.minimum(ahead, CORNER_AHEAD) - 0.25 * off
+    order = np.argsort(-score, kind="stable")
+    stops: list[Stop | None] = [None] * len(xy)
+
+    def stop_at(i: int) -> Stop | None:
+        if stops[i] is None:
+            s = path.project(xy[i], near=s_next)
+            yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
+            turned = unhidden_yaw(xy[i], yaw, cubes, stations, space.floor_z)
+            stops[i] = Stop(xy[i], turned) if turned is not None else Stop(xy[i], math.nan)
+        found = stops[i]
+        return None if found is None or math.isnan(found.yaw) else found
+
+    for k, margin in enumerate(margins):
+        for i in order[:CORNER_PAIRS]:
+            far = stop_at(int(i))
+            if far is None:
+                continue
+            for j in order:
+                if j == i or score[j] > score[i]:
+                    continue
+                near = stop_at(int(j))
+                if near is None:
+                    continue
+                pair = [far, near]
+                if _formation_ok(
+                    space, pair, stations, cubes, instrument_range, waiting_xy, margin
+                ):
+                    return k, pair
+    return None
+
+
+def _distance_to_polyline(points: NDArray[np.float64], line: NDArray[np.float64]) -> NDArray:
+    """(N,) least distance of (N, 2) points from the (K >= 2, 2) polyline, m."""
+    out = np.full(len(points), math.inf)
+    for a, b in itertools.pairwise(line):
+        d = b - a
+        n2 = max(float(d @ d), 1e-12)
+        t = np.clip((points - a) @ d / n2, 0.0, 1.0)
+        out = np.minimum(out, np.linalg.norm(a + t[:, None] * d - points, axis=1))
+    return out
