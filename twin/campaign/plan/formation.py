@@ -293,14 +293,18 @@ def corner_formation(
         found = stops[i]
         return None if found is None or math.isnan(found.yaw) else found
 
+    # What a pair needs of its places alone, as arrays: 1 m apart, apart in bearing.
+    apart = np.linalg.norm(xy[:, None] - xy[None], axis=-1) >= 1.0
+    for inst in stations:
+        bearing = np.arctan2(xy[:, 1] - inst[1], xy[:, 0] - inst[0])
+        apart &= np.abs(wrap_angle(bearing[:, None] - bearing[None])) >= MIN_SEPARATION
     for k, margin in enumerate(margins):
         for i in order[:CORNER_PAIRS]:
             far = stop_at(int(i))
             if far is None:
                 continue
-            for j in order:
-                if j == i or score[j] > score[i]:
-                    continue
+            partners = [j for j in order if apart[i, j] and score[j] <= score[i]]
+            for j in partners[:CORNER_PAIRS]:
                 near = stop_at(int(j))
                 if near is None:
                     continue
