@@ -36,6 +36,7 @@ import yaml
 from numpy.typing import NDArray
 from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
+from shapely.ops import nearest_points
 
 from calib.io.text import read_text, yaml_load
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
@@ -360,8 +361,36 @@ def _route_graph(
     points = [Point(0.0, 0.0), *(Point(*st.xy) for st in stations.values())]
     passage = _widest_joining(floor, pose, points, PASSAGE_CLEARANCE, FORMATION_CLEARANCE)
     if passage is None:
+        _check_passages(floor, pose, points)
         return RouteGraph(reachable)
     return RouteGraph(pose.geometry2world(floor.reachable(passage)))
+
+
+def _check_passages(floor: FloorMap, pose: MapPose, points: Sequence[Point]) -> None:
+    """Where the free floor joins ``points`` (W) but only through a passage narrower than
+    the parent passes (:data:`PASSAGE_CLEARANCE` on either side), name the passage.
+
+    Raises:
+        MapError: naming where the passage is, in the map's frame, and the width needed.
+    """
+    free = pose.geometry2world(floor.free)
+    if not any(all(p.covers(q) for q in points) for p in getattr(free, "geoms", [free])):
+        return  # pieces of floor no passage joins: the route says so
+    roomy = pose.geometry2world(floor.reachable(PASSAGE_CLEARANCE))
+    pieces = list(getattr(roomy, "geoms", [roomy]))
+    start = next((p for p in pieces if p.covers(points[0])), None)
+    cut = next((q for q in points[1:] if start is None or not start.covers(q)), points[0])
+    other = next((p for p in pieces if p.covers(cut)), None)
+    if start is None or other is None:
+        return
+    a, b = nearest_points(start, other)
+    x, y = pose.world2map([0.5 * (a.x + b.x), 0.5 * (a.y + b.y)])
+    raise MapError(
+        floor.source,
+        f"the passage near ({x:.2f}, {y:.2f}) (the map's frame, m) is narrower than the "
+        f"parent needs ({2 * PASSAGE_CLEARANCE:.2f} m: its width and a margin on either "
+        "side): the stations beyond it cannot be reached",
+    )
 
 
 PASSAGE_SLACK = 0.02
