@@ -203,8 +203,9 @@ def test_a_return_along_the_way_out_ends_with_a_named_failure(strategy, noise):
     # The smoke room, out to x = 4 m and back to the start along the same line. The
     # group's place on the route after a leg was the first of the two equally near (out
     # and back): on its way back it was put on its way out, drove round the turn at
-    # x = 4 m again, and again, about 11,000 times. Now the return goes on until the
-    # children have no room ahead of the parent before the west wall.
+    # x = 4 m again, and again, about 11,000 times. Now the return goes on, and where the
+    # children have no room ahead of the parent before the west wall they stand where
+    # both of its stations see them.
     sc = _smoke(RETURN, return_to_start=True)
     campaign, log, outcome, seconds = _run(
         sc, seed=1, strategy=strategy_named(strategy), noise=noise
@@ -212,7 +213,7 @@ def test_a_return_along_the_way_out_ends_with_a_named_failure(strategy, noise):
     assert seconds < 30.0
     _within_bounds(campaign, log)
     assert outcome.failures["no_progress"] == 0
-    assert outcome.failures["no_formation"] == outcome.failures["campaign_aborted"] == 1
+    assert outcome.failures["no_formation"] == outcome.failures["campaign_aborted"] == 0
     stages = [stage for stage, _ in log.by_stage()]
     assert stages[-2:] == ["return", "done"]
     # Back past the turn: the parent stands on the way back, nearer the start than x = 4.
