@@ -262,7 +262,12 @@ def plan_site(
     if parent_free.is_empty:
         raise MapError(floor.source, "no floor is wide enough for the robots")
     floor_z = -INSTRUMENT_HEIGHT
-    parent_free, unreachable = _region(floor, cameras, parent_free, start, floor_z)
+    # The pieces of floor are those the parent passes between (a doorway joins two rooms);
+    # it drives and stands with the formation's clearance wherever the floor allows.
+    passable, unreachable = _region(
+        floor, cameras, floor.reachable(PASSAGE_CLEARANCE), parent_free, start, floor_z
+    )
+    parent_free = parent_free.intersection(passable)
     cameras = [c for c in cameras if str(c["name"]) not in unreachable]
     names = [str(c["name"]) for c in cameras]
     if wanted is not None:
@@ -280,7 +285,7 @@ def plan_site(
         in_map = _stations(
             floor, cameras, chosen, MapPose(), station_free, floor_z, resolution, avoid
         )
-        graph = RouteGraph(parent_free)
+        graph = RouteGraph(passable)
         first, second = _first_two(graph, in_map, wanted, floor.source)
         pose = MapPose(*_group_start(floor, parent_free, _lead_in(first, second, parent_free)), 0.0)
         stations = {
@@ -732,22 +737,25 @@ def _no_room(x: float, y: float) -> str:
 def _region(
     floor: FloorMap,
     cameras: Sequence[Mapping[str, Any]],
+    passable: BaseGeometry,
     parent_free: BaseGeometry,
     start: tuple[float, float, float] | None,
     floor_z: float,
 ) -> tuple[Polygon, dict[str, str]]:
-    """The piece of ``parent_free`` the plan keeps to (the given start's, else the one
-    most cameras' floor views lie on) and the cameras whose view lies elsewhere, each with
-    where it is and why (:mod:`twin.planning.regions`).
+    """The piece of ``passable`` (the floor the parent's centre may pass, doorways
+    included) the plan keeps to (the given start's, else the one most cameras' floor views
+    lie on) and the cameras whose view lies elsewhere, each with where it is and why
+    (:mod:`twin.planning.regions`). A given start must be on ``parent_free`` (the floor
+    with the formation's clearance).
 
     Raises:
         MapError: a given start off the floor, on a piece no camera's view lies on, or
             without room for the children; no camera reachable. The message gives the
             place in the map's frame and a ``--start`` that works where one is found.
     """
-    pieces = floor_pieces(parent_free)
+    pieces = floor_pieces(passable)
     views = {str(c["name"]): _floor_view(floor, c, floor_z) for c in cameras}
-    counts = view_counts(pieces, views, FORMATION_CLEARANCE)
+    counts = view_counts(pieces, views, PASSAGE_CLEARANCE)
     main = main_piece(pieces, counts)
     region = main
     if start is not None:
@@ -761,9 +769,18 @@ def _region(
             )
         elif not any(c.sum() > 0 and c[at] >= c.max() for c in counts.values()):
             area = pieces[at].area
+            cut_off = [
+                f"{name} {why}"
+                for name in views
+                if (
+                    why := unreachable_why(
+                        floor, pieces, at, counts[name], views[name], PASSAGE_CLEARANCE
+                    )
+                )
+            ]
             why = (
                 f"the start ({x:.2f}, {y:.2f}) in the map's frame is on a piece of floor "
-                f"({area:.1f} m^2) that no camera's floor view lies on"
+                f"({area:.1f} m^2) that no camera's floor view lies on ({'; '.join(cut_off)})"
             )
         elif children_at(child_free, (x, y), yaw) is None:
             why = _no_room(x, y)
@@ -771,7 +788,7 @@ def _region(
             why = ""
             region = at
         if why:
-            place = group_start(pieces[main], child_free, (x, y), yaw)
+            place = group_start(pieces[main].intersection(parent_free), child_free, (x, y), yaw)
             hint = (
                 f"; try --start {place[0]:.2f} {place[1]:.2f} {math.degrees(yaw):g}"
                 if place is not None
@@ -782,7 +799,7 @@ def _region(
     for cam in cameras:
         cam_name = str(cam["name"])
         why = unreachable_why(
-            floor, pieces, region, counts[cam_name], views[cam_name], FORMATION_CLEARANCE
+            floor, pieces, region, counts[cam_name], views[cam_name], PASSAGE_CLEARANCE
         )
         if why is not None:
             x, y = np.asarray(cam["position"], dtype=float)[:2]

@@ -16,6 +16,7 @@ from shapely.geometry import box
 
 from twin.planning import floor_shapes as fs
 from twin.planning.floor_map import MapError
+from twin.planning.maps import load_map
 from twin.planning.site import PASSAGE_CLEARANCE, plan_site
 from twin.runner import run_scenario
 from twin.scenario.loader import scenario_from_dict
@@ -83,11 +84,13 @@ SHAPES = {
 }
 
 
-def plan(shape: str):
+def plan(shape: str, folder):
+    """The shape's plan, its map written in ``folder`` as a ROS map (a scenario references
+    its map file), and its cameras' names."""
     free, cameras, start = SHAPES[shape]()
-    floor = fs.floor_map(free, height=4.0)
+    floor = load_map(fs.write_ros_map(free, folder, name=shape))
     names = [c["name"] for c in cameras]
-    planned = plan_site(floor, cameras, name=shape, start=start, visits=names)
+    planned = plan_site(floor, cameras, name=shape, start=start, visits=names, ceiling_height=4.0)
     # A short campaign: no reference data sets, a small data set at each station.
     planned.scenario["campaign"] = {"reference_cameras": [], "station_points": 40}
     return planned, names
@@ -95,17 +98,19 @@ def plan(shape: str):
 
 @pytest.mark.parametrize("shape", list(SHAPES))
 def test_a_camera_past_a_hard_spot_is_calibrated_noise_free(shape, tmp_path):
-    planned, names = plan(shape)
-    scenario = scenario_from_dict(planned.scenario)
-    results = run_scenario(scenario, tmp_path, fidelity="geometric", noise=False, report=False)
+    planned, names = plan(shape, tmp_path)
+    scenario = scenario_from_dict(planned.scenario, file=tmp_path / f"{shape}.toml")
+    results = run_scenario(
+        scenario, tmp_path / "run", fidelity="geometric", noise=False, report=False
+    )
     assert results["failures"].get("campaign_aborted", 0) == 0, results["failures"]
     assert [c["camera"] for c in results["calibrations"]] == names
     for cal in results["calibrations"]:
         assert cal["truth"]["position_error_mm"] < EXACT_MM, (cal["camera"], cal["truth"])
 
 
-def test_the_dead_end_route_goes_into_the_room_and_back_out():
-    planned, _ = plan("dead_end")
+def test_the_dead_end_route_goes_into_the_room_and_back_out(tmp_path):
+    planned, _ = plan("dead_end", tmp_path)
     route = planned.route
     inside = route[:, 1] > 1.2 + fs.WALL  # W is the map moved 1.5 m along x
     enters = np.flatnonzero(inside)
@@ -117,7 +122,9 @@ def test_the_dead_end_route_goes_into_the_room_and_back_out():
 def test_a_passage_narrower_than_the_parent_is_named_before_any_run():
     door = 2 * PASSAGE_CLEARANCE - 0.3
     free = fs.doorway((8.0, 6.0), door)
-    with pytest.raises(MapError, match=r"passage near \(6\.60, 0\.00\).*narrower"):
+    with pytest.raises(
+        MapError, match=r"beyond a passage [\d.]+ m wide at \(6\.[56]\d, -?0\.\d+\), narrower"
+    ):
         plan_site(
             fs.floor_map(free, height=4.0),
             [camera("second_room", (14.3, 0.3), (9.0, 0.0))],

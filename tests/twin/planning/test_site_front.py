@@ -21,6 +21,7 @@ from twin.planning.dxf_map import is_wall_layer
 from twin.planning.floor_map import FloorMap
 from twin.planning.maps import load_map
 from twin.planning.regions import CHILD_CLEARANCE, children_at, group_start
+from twin.planning.site import PASSAGE_CLEARANCE
 from twin.scenario import load_scenario
 
 
@@ -133,7 +134,7 @@ def test_a_camera_behind_a_passage_narrower_than_the_robots_is_named_with_the_pl
     assert float(found[1]) == pytest.approx(0.6, abs=0.06)
     assert float(found[2]) == pytest.approx(7.0 + ORIGIN[0], abs=0.1)
     assert float(found[3]) == pytest.approx(4.0 + ORIGIN[1], abs=0.1)
-    assert float(found[4]) > 1.2
+    assert float(found[4]) == pytest.approx(2 * PASSAGE_CLEARANCE, abs=0.005)
     assert [c.name for c in load_scenario(out).cameras] == ["cam2"]
 
 
