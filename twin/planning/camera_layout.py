@@ -3,14 +3,14 @@ of the floor, every few metres, high up, looking down along the corridor.
 
 The rule (:func:`place_cameras`):
 
-1. the floor a robot's centre can reach (the free floor shrunk by the robots' clearance),
-   every piece of it, reachable from one start or not;
-2. its medial axis, on a grid: the cells that are at least as far from the floor's edge as
-   their two neighbours along some direction (the ridge of the distance transform);
-3. points on the axis at least ``spacing`` m apart, taken greedily in an order drawn from
+1. the medial axis of the free floor, on a grid: the cells that are at least as far from
+   the floor's edge as their two neighbours along some direction (the ridge of the distance
+   transform), where a robot's centre fits (the robots' clearance from the edge), on every
+   piece of that floor of at least 1 m^2, reachable from one start or not;
+2. points on the axis at least ``spacing`` m apart, taken greedily in an order drawn from
    ``seed``; the spacing is widened or narrowed until there are ``least`` to ``most``
    cameras (as far as the floor allows);
-4. each camera ``height`` m over its point, looking ``tilt_deg`` down along the axis there
+3. each camera ``height`` m over its point, looking ``tilt_deg`` down along the axis there
    (the axis's main direction within 1.5 m), towards the side with the longer free floor.
 
 Nothing is chosen by hand, so no hard spot of a map (a narrow passage, a pocket cut off from
@@ -33,7 +33,6 @@ from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from twin.planning.floor_map import FloorMap
-from twin.planning.maps import polygons_of
 from twin.planning.site import FORMATION_CLEARANCE
 
 HEIGHT = 3.0
@@ -69,17 +68,25 @@ INTRINSICS: dict[str, Any] = {"f": 300.0, "cx": 159.5, "cy": 119.5, "image_size"
 
 
 def medial_axis(
-    region: BaseGeometry, grid: float = GRID
+    region: BaseGeometry,
+    grid: float = GRID,
+    clearance: float = 0.0,
+    least_piece: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The medial axis of ``region`` on a grid.
+    """The medial axis of ``region`` on a grid, where it is ``clearance`` m clear of the
+    region's edge, on pieces of that clear floor of ``least_piece`` m^2 or more.
 
     Args:
         region: a Polygon or MultiPolygon, m.
         grid: cell size, m (made coarser to keep to :data:`MAX_CELLS`).
+        clearance: least distance of the axis from the region's edge, m.
+        least_piece: pieces of the floor ``clearance`` m clear of the edge smaller than
+            this are left out, m^2.
 
     Returns:
         ``(points, clearance)``: (N, 2) centres of the axis's cells (m, ordered by row then
-        column of the grid, north first) and (N,) their distance from the region's edge, m.
+        column of the grid, north first) and (N,) their distance from the region's edge, m
+        (to the grid's half a cell).
     """
     x0, y0, x1, y1 = region.bounds
     grid = max(grid, math.sqrt((x1 - x0) * (y1 - y0) / MAX_CELLS))
@@ -89,17 +96,24 @@ def medial_axis(
     gx, gy = np.meshgrid(xs, ys)
     shapely.prepare(region)
     inside = shapely.contains_xy(region, gx, gy)
-    dist = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, 5)
+    # Distance from a cell's centre to the nearest cell outside, in cells.
+    dist = cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    edge = (dist - 0.5) * grid
+    clear = inside & (edge >= clearance)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(clear.astype(np.uint8), None, 8)
+    big = stats[:, cv2.CC_STAT_AREA] * grid**2 >= least_piece
+    big[0] = False  # the label of the cells not clear
+    clear &= big[labels]
     pad = np.pad(dist, 1)
     ridge = np.zeros_like(inside)
     for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
         a = pad[1 + dr : 1 + dr + ny, 1 + dc : 1 + dc + nx]
         b = pad[1 - dr : 1 - dr + ny, 1 - dc : 1 - dc + nx]
         ridge |= (dist >= a) & (dist >= b) & ((dist > a) | (dist > b))
-    ridge &= inside
+    ridge &= clear
     rows, cols = np.nonzero(ridge)
     points = np.column_stack([xs[cols], ys[rows]])
-    return points, dist[rows, cols] * grid
+    return points, edge[rows, cols]
 
 
 def _spread(points: NDArray, order: NDArray, spacing: float) -> list[int]:
@@ -166,13 +180,9 @@ def place_cameras(
     """
     if not 1 <= least <= most:
         raise ValueError(f"expected 1 <= least <= most, got least={least}, most={most}")
-    pieces = [p for p in polygons_of(floor.reachable(clearance)) if p.area >= LEAST_PIECE]
-    if not pieces:
-        raise ValueError(f"{floor.source}: no floor is {clearance:g} m clear of the walls")
-    region = shapely.union_all(pieces)
-    points, _ = medial_axis(region)
+    points, _ = medial_axis(floor.free, clearance=clearance, least_piece=LEAST_PIECE)
     if points.shape[0] == 0:
-        raise ValueError(f"{floor.source}: the floor's medial axis is empty")
+        raise ValueError(f"{floor.source}: no floor is {clearance:g} m clear of the walls")
     order = np.random.default_rng(seed).permutation(points.shape[0])
     kept = _spread(points, order, spacing)
     for _ in range(30):
