@@ -156,8 +156,10 @@ def _write_map(name: str, folder: Path) -> Path:
     return write_ros_map(shape, folder, flaws=flaws, seed=0)
 
 
-def _counted(floor: Any, cameras: list[dict[str, Any]], start: tuple[float, float] | None) -> int:
-    """How many cameras' floor views hold floor reachable from ``start`` (map frame, m; the
+def _counted(
+    floor: Any, cameras: list[dict[str, Any]], start: tuple[float, float] | None
+) -> set[str]:
+    """The cameras whose floor views hold floor reachable from ``start`` (map frame, m; the
     largest reachable region when None) at the robots' clearance."""
     from twin.planning.maps import polygons_of
     from twin.planning.site import FORMATION_CLEARANCE
@@ -167,18 +169,18 @@ def _counted(floor: Any, cameras: list[dict[str, Any]], start: tuple[float, floa
 
     pieces = polygons_of(floor.reachable(FORMATION_CLEARANCE))
     if not pieces:
-        return 0
+        return set()
     if start is not None:
         here = [p for p in pieces if p.covers(Point(*start))]
         region = here[0] if here else min(pieces, key=lambda p: p.distance(Point(*start)))
     else:
         region = max(pieces, key=lambda p: p.area)
-    n = 0
+    out = set()
     for cam in cameras:
         view = floor_view(validate_model(CameraConfig, cam).tsai(), 0.0, max_range=60.0)
         if any(region.covers(Point(*p[:2])) for p in view):
-            n += 1
-    return n
+            out.add(str(cam["name"]))
+    return out
 
 
 def run_site(
@@ -213,7 +215,8 @@ def run_site(
             start = (float(pose[0]), float(pose[1]))
             route = np.asarray(scenario["route"]["waypoints"], dtype=float)
             result.route_m = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
-        result.counted = _counted(floor, cameras, start)
+        counted = _counted(floor, cameras, start)
+        result.counted = len(counted)
         if not result.planned:
             result.runs = len(seeds)
             return result
@@ -252,9 +255,9 @@ def run_site(
                 if mm is not None and math.isfinite(mm):
                     result.errors_mm.append(float(mm))
                     best[cal["camera"]] = min(best.get(cal["camera"], math.inf), float(mm))
-            result.calibrated += sum(1 for mm in best.values() if mm < CALIBRATED_MM)
-    # A camera outside the count may be calibrated too; it does not raise the rate above 1.
-    result.calibrated = min(result.calibrated, result.counted * result.runs)
+            result.calibrated += sum(
+                1 for cam, mm in best.items() if mm < CALIBRATED_MM and cam in counted
+            )
     return result
 
 
