@@ -17,15 +17,19 @@ Per site, as a user would run it (each a separate process):
    noise-free (did it complete, or abort?);
 3. ``python -m twin.cli run site.toml --fidelity geometric --seed S`` for each seed.
 
-A camera counts when its floor view holds floor reachable from the start (the start of the
-plan; the largest reachable region where there is no plan) at the robots' clearance; it is
-calibrated in a run when a calibration of it is delivered with a world-frame position error
-under 100 mm. The summary row checks the targets: every site plans without a given start,
-at least 99 % of the cameras calibrated over the seeds, and no abort in the seeds' runs of a
-plan whose noise-free run completed.
+A camera counts when its floor view (its image's rays met with the floor, walls not hiding
+them) holds floor reachable from the start (the start of the plan; the largest reachable
+region where there is no plan) at the robots' clearance; it is calibrated in a run when a
+calibration of it is delivered with a world-frame position error under 100 mm. The median
+and worst errors are over every calibration delivered (a camera's second visit included).
+The summary row checks the targets: every site plans without a given start, at least 99 %
+of the cameras calibrated over the seeds, and no abort in the seeds' runs of a plan whose
+noise-free run completed.
 
 Run: ``.venv/bin/python benchmarks/bench_sites.py [--sites NAME ...] [--seeds 1 2 3 4 5]
-[--jobs 2] [--timeout 600] [--camera-height 3] [--json out.json]``; ``--list`` names the sites.
+[--jobs 2] [--timeout 600] [--camera-height 3] [--keep DIR] [--json out.json]``; ``--list``
+names the sites. Each site's commands run one after another in one of ``--jobs`` worker
+processes; ``--keep`` keeps each site's map, cameras, scenario and runs.
 """
 
 from __future__ import annotations
