@@ -54,7 +54,7 @@ from twin.planning.regions import (
     unreachable_why,
     view_counts,
 )
-from twin.planning.route import NoPathError, RouteGraph
+from twin.planning.route import TOLERANCE, NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
 from twin.scenario.errors import ScenarioError
@@ -628,13 +628,16 @@ def _route(
     graph: RouteGraph, stations: Sequence[NDArray], return_to_start: bool
 ) -> tuple[NDArray[np.float64], list[float]]:
     """The route from W's origin through ``stations`` (and back), and the heading at each
-    station's arrival, deg."""
+    station's arrival, deg: the shortest paths on ``graph``, their arcs straightened
+    (:func:`_straighten`)."""
+    floor = shapely.buffer(graph.reachable, TOLERANCE)
+    shapely.prepare(floor)
     targets = [*stations, np.zeros(2)] if return_to_start else list(stations)
     here = np.zeros(2)
     points = [here]
     arrivals: list[float] = []
     for k, goal in enumerate(targets):
-        path = graph.path(here, goal)
+        path = _straighten(graph.path(here, goal), floor)
         for p in path[1:]:
             if np.linalg.norm(p - points[-1]) > 1e-6:
                 points.append(np.asarray(p, dtype=float))
@@ -644,6 +647,55 @@ def _route(
     if len(points) == 1:  # every station at the start: a route needs two points
         points.append(points[0] + (0.5, 0.0))
     return np.array(points), arrivals
+
+
+def _straighten(path: NDArray[np.float64], floor: BaseGeometry) -> NDArray[np.float64]:
+    """``path`` ((K, 2), m: a shortest path, taut round the corners it turns) with the arcs
+    it wraps replaced by the fewest straight pieces that stay on ``floor``.
+
+    The floor shrunk by a clearance rounds every corner into an arc of 5 cm pieces, and
+    each would be a drive. A piece's line, continued past its end, runs on the free side
+    of the corner it wraps (the corner's arc is convex); so two pieces' lines continued
+    until they meet replace the pieces between them with one bend. Greedily from the start,
+    each bend replaces as many pieces as keep the two lines on ``floor`` and turn by at
+    most 90 degrees (a sharper turn in one bend would run far past the corner); the path's
+    ends stay where they are.
+
+    Args:
+        path: (K, 2), K >= 2. floor: where the path may run (prepared, grown by a tolerance).
+    """
+    if len(path) < 4:
+        return path
+    out = [path[0]]
+    a = 0  # the piece path[a] -> path[a + 1] the path runs along now, from out[-1]
+    last = len(path) - 2  # the last piece
+    while a < last:
+        here, d_a = out[-1], path[a + 1] - path[a]
+        bend = None
+        for b in range(a + 2, last + 1):
+            d_b = path[b + 1] - path[b]
+            cross = float(d_a[0] * d_b[1] - d_a[1] * d_b[0])
+            if float(d_a @ d_b) < 0.0:  # a bend of more than 90 degrees
+                break
+            if abs(cross) < 1e-12:
+                continue
+            w = path[b] - path[a]
+            t = float(w[0] * d_b[1] - w[1] * d_b[0]) / cross  # along d_a from path[a]
+            u = float(w[0] * d_a[1] - w[1] * d_a[0]) / cross  # along d_b from path[b]
+            if t < 1.0 - 1e-9 or u > 1e-9:  # the lines meet behind the pieces' ends
+                break
+            q = path[a] + t * d_a
+            if not floor.covers(LineString([here, q, path[b + 1]])):
+                break
+            bend = (b, q)
+        if bend is None:
+            out.append(path[a + 1])
+            a += 1
+        else:
+            a = bend[0]
+            out.append(bend[1])
+    out.append(path[-1])
+    return np.array(out)
 
 
 RUN_OUT = 6.0

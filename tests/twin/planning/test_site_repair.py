@@ -52,7 +52,7 @@ def test_a_station_the_robots_block_is_moved_and_the_repaired_plan_written(tmp_p
     (line,) = [s for s in said.split("repair: ")[1:] if s.startswith("another station")]
     assert "1 cameras calibrated, 0 visits dropped; kept" in line
     first = np.array([float(v) for v in AWAY.search(line).groups()])
-    assert "every camera is calibrated by the repaired plan" in said
+    assert "every camera of the plan is calibrated by the repaired plan" in said
     sc = load_scenario(out)
     pose = MapPose(sc.site.map_pose[0], sc.site.map_pose[1], np.radians(sc.site.map_pose[2]))
     (visit,) = sc.calibration.visits
