@@ -26,6 +26,7 @@ CAMPAIGN_ALLOWED = (
     "twin.campaign",
     "twin.timing",
     "twin.truth",
+    "twin.planning.route",  # shortest paths over shapely geometry, nothing of a backend
 )
 CAMPAIGN_FORBIDDEN = (*BACKENDS, "twin.runner", "twin.record")
 STRATEGY_MODULES = ("strategy.py", "paper_strategy.py", "strategies.py", "plan")

@@ -69,6 +69,13 @@ SHAPES = {
         [camera("way_back", (1.0, 3.4), (6.0, 2.6))],
         (-2.0, -1.0, 0.0),
     ),
+    # The camera at the way back's far end looks along it to the start: its station is
+    # in the lobby, and the child drives round the robots standing there into the way back.
+    "way_back_from_lobby": lambda: (
+        lobby(fs.corridor_turn(2.4, 180.0, LEG)),
+        [camera("far_leg", (0.58, 3.26), (5.97, 1.95))],
+        (-1.5, 0.0, 0.0),
+    ),
     # A room behind a 1.2 m door halfway along a blind corridor, then its far end: in and
     # back out.
     "dead_end": lambda: (

@@ -1,5 +1,6 @@
 """A child's way to a stop past the robots that stand: straight where that is clear, else
-through one corner beside the straight line.
+through one corner beside the straight line, else the shortest way on the floor round the
+robots (:class:`twin.planning.route.RouteGraph`).
 
 A child driving to a data stop in a camera's view crosses ground the campaign's route never
 planned, where the parent and the other child stand. A straight drive through one of them
@@ -17,10 +18,15 @@ Planned on the map and the campaign's estimates of where the robots stand.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
+import shapely
 from numpy.typing import ArrayLike, NDArray
 
 from twin.campaign.plan.clearance import path_clear
+from twin.planning.route import NoPathError, RouteGraph
+from twin.scenario.geometry import obstacles_near, rectangle
 from twin.scenario.schema import Space
 
 WAY_CLEARANCE = 0.3
@@ -36,6 +42,16 @@ CORNER_FRACTIONS = (0.5, 0.25, 0.75)
 
 CORNER_OFFSETS = (0.75, 1.5, 2.25, 3.0)
 """How far to either side of the straight line a corner is tried, m."""
+
+WAY_REACH = 6.0
+"""How far beyond the box round a way's two ends the floor is searched for a way round
+the robots, m."""
+
+WAY_MARGIN = 0.01
+"""How much wider than the distance kept the map's obstacles and the standing robots are
+drawn on the floor a way round them is searched on, m: a way bends at their corners, and
+a point at exactly a clearance does not keep it (:func:`leg_clear`); a robot's disc is a
+polygon inside its circle (by less than this)."""
 
 
 def _passes(
@@ -136,4 +152,47 @@ def way_to(
             space, corner, b, robots, keep, clearance
         ):
             return [corner]
-    return None
+    return _way_round(space, a, b, robots, keep, leave)
+
+
+def _way_round(
+    space: Space,
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    robots: ArrayLike,
+    keep: ArrayLike,
+    clearance: float,
+) -> list[NDArray[np.float64]] | None:
+    """The corners of the shortest way from ``a`` to ``b`` ((2,) m) on the floor near them
+    (:data:`WAY_REACH`) kept ``clearance`` from the walls and obstacles (their footprints
+    grown, rectangles as :func:`map_clearance` measures) and ``keep[k]`` from each robot
+    (no more than ``a`` stands from it), each leg checked with :func:`leg_clear`; None
+    where there is none (a robot or the map closes the way)."""
+    centres = np.asarray(robots, dtype=float).reshape(-1, 2)
+    away = np.linalg.norm(centres - a, axis=1)
+    room = np.minimum(np.asarray(keep, dtype=float), away)
+    lo = np.minimum(a, b) - WAY_REACH
+    hi = np.maximum(a, b) + WAY_REACH
+    (x0, x1), (y0, y1) = space.x_range, space.y_range
+    grow = min(clearance + WAY_MARGIN, map_clearance(space, a))  # ``a`` on the floor
+    window = shapely.box(
+        max(lo[0], x0 + grow), max(lo[1], y0 + grow), min(hi[0], x1 - grow), min(hi[1], y1 - grow)
+    )
+    near = obstacles_near(space.obstacles, np.array([lo, hi]), grow)
+    blocked = [rectangle(ob.center, np.add(ob.size[:2], 2 * grow), ob.yaw) for ob in near]
+    blocked += [
+        shapely.Point(c).buffer(min(r + WAY_MARGIN, d))
+        for c, r, d in zip(centres, room, away, strict=True)
+        if d > 0.0
+    ]
+    floor = window.difference(shapely.union_all(blocked)) if blocked else window
+    try:
+        path = RouteGraph(floor).path(a, b)
+    except NoPathError:
+        return None
+    corners = [np.asarray(c, dtype=float) for c in path[1:-1]]
+    legs = [a, *corners, b]
+    for start, end in itertools.pairwise(legs):
+        if not leg_clear(space, start, end, centres, room, clearance):
+            return None
+    return corners

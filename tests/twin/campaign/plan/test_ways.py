@@ -116,3 +116,20 @@ def test_every_way_found_keeps_its_distances(x0, y0, x1, y1, px, py):
         assert path_clear(SPACE, a, b, clearance)
         room = min(KEEP, float(np.linalg.norm(b - parent)))
         clearance = WAY_CLEARANCE
+
+
+def test_a_way_round_two_rows_of_robots_bends_as_often_as_it_must():
+    # Robots closing the room from the south up to y = 0.5 at x = 1.5, and from the north
+    # down to y = -0.5 at x = 3.5: no way with one corner; the shortest way on the floor
+    # round them winds between the rows, each leg clear of the map and every robot.
+    robots = [[1.5, y] for y in np.arange(-3.0, 0.51, 0.5)]
+    robots += [[3.5, y] for y in np.arange(-0.5, 3.01, 0.5)]
+    keep = [0.79] * len(robots)
+    start, goal = np.array([0.0, 0.0]), np.array([5.0, 0.5])
+    way = way_to(SPACE, start, goal, robots, keep)
+    assert way is not None
+    assert len(way) >= 2
+    for a, b in itertools.pairwise([start, *way, goal]):
+        assert leg_clear(SPACE, a, b, robots, keep)
+        for r in robots:
+            assert _nearest(a, b, r) >= 0.79
