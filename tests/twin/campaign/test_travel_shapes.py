@@ -46,8 +46,7 @@ def camera(name: str, xy, toward, height: float = 3.0, down_deg: float = 30.0) -
 
 
 def lobby(free, top: float = 2.5):
-    """``free`` with a 4 x 5 m room at its way in, where the group starts (a 2.4 m
-    corridor has no room beside the parent for both children)."""
+    """``free`` with a 4 x 5 m room at its way in, where the group starts."""
     return shapely.union_all([free, box(-3.0, -2.5, 1.0, top)])
 
 
@@ -57,7 +56,7 @@ def turn(deg: float):
     back = -np.array([math.cos(a), math.sin(a)])  # from the end towards the turn
     right = np.array([math.sin(a), -math.cos(a)])  # of the way on, looking along it
     cam = camera("past_turn", end + 0.5 * back + 0.9 * right, end + 5.0 * back)
-    return lobby(fs.corridor_turn(2.4, deg, LEG)), [cam], (-1.5, 0.0, 0.0)
+    return fs.corridor_turn(2.4, deg, LEG), [cam], (1.5, 0.0, 0.0)
 
 
 SHAPES = {
@@ -79,9 +78,9 @@ SHAPES = {
     # A room behind a 1.2 m door halfway along a blind corridor, then its far end: in and
     # back out.
     "dead_end": lambda: (
-        lobby(fs.dead_end(2.4, 16.0, (5.0, 4.0), 1.2)),
+        fs.dead_end(2.4, 16.0, (5.0, 4.0), 1.2),
         [camera("room", (8.0, 5.1), (8.0, 1.9)), camera("blind_end", (15.5, 0.9), (11.0, 0.0))],
-        (-1.5, 0.0, 0.0),
+        (1.5, 0.0, 0.0),
     ),
     "doorway_1m": lambda: (
         fs.doorway((8.0, 6.0), 1.0),
