@@ -27,7 +27,7 @@ from twin.campaign.plan.clearance import (
     robot_fits,
 )
 from twin.campaign.plan.occlusion import unhidden_yaw
-from twin.campaign.plan.ways import ROBOT_MARGIN, way_to
+from twin.campaign.plan.ways import ROBOT_MARGIN, robots_clear, way_to
 from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
@@ -180,7 +180,7 @@ class Travel:
         # route first.
         blocked = not path_clear(self.space, here, first, 0.3)
         far = np.linalg.norm(here - move.entry) > ROUTE_TOLERANCE
-        if blocked and far and not self._drive(base, move.entry).reached:
+        if blocked and far and not self._drive_round(base, move.entry).reached:
             return False
         waypoints = list(move.corners)
         last = waypoints[-1] if waypoints else here
@@ -190,9 +190,28 @@ class Travel:
         ):
             waypoints.append(move.on_route)  # along the route, then sideways to the stop
         for point in waypoints:
-            if not self._drive(base, point).reached:
+            if not self._drive_round(base, point).reached:
                 return False
-        return self._drive(base, move.stop.xy, move.stop.yaw).reached
+        return self._drive_round(base, move.stop.xy, move.stop.yaw).reached
+
+    def _drive_round(
+        self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
+    ) -> DriveResult:
+        """:meth:`_drive`; a child's whose straight drive passes a standing robot closer
+        than :meth:`standing_robots` keeps goes first through the corner of a way round it
+        (:func:`twin.campaign.plan.ways.way_to`), where the map leaves one (else straight
+        on, as planned). A route's corner can be where the parent stands (a leg that starts
+        at a turn), and a child that left the route for a camera's data comes back to it
+        past the parent."""
+        if base.name in self.rig.children:
+            here = base.odometry().pose[:2]
+            robots, keep = self.standing_robots(base.name)
+            if not robots_clear(here, goal_xy, robots, keep):
+                for corner in way_to(self.space, here, goal_xy, robots, keep) or []:
+                    result = self._drive(base, corner)
+                    if not result.reached:
+                        return result
+        return self._drive(base, goal_xy, goal_yaw)
 
     def _drive(
         self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None

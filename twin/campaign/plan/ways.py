@@ -94,14 +94,23 @@ def leg_clear(
     A robot the child already stands nearer than ``keep`` does not block a drive that
     takes it no nearer (a child leaves the side of a robot it stopped beside).
     """
+    return robots_clear(start, end, robots, keep) and path_clear(space, start, end, clearance)
+
+
+def robots_clear(start: ArrayLike, end: ArrayLike, robots: ArrayLike, keep: ArrayLike) -> bool:
+    """Whether a child can drive straight from ``start`` to ``end`` ((2,) m) keeping
+    ``keep[k]`` from each robot ((K, 2) centres, m); the map is not looked at.
+
+    A robot the child already stands nearer than ``keep`` does not block a drive that
+    takes it no nearer (a child leaves the side of a robot it stopped beside).
+    """
     a = np.asarray(start, dtype=float).reshape(2)
     b = np.asarray(end, dtype=float).reshape(2)
     centres = np.asarray(robots, dtype=float).reshape(-1, 2)
-    if len(centres):
-        room = np.minimum(np.asarray(keep, dtype=float), np.linalg.norm(centres - a, axis=1))
-        if (_passes(a, b, centres) < room - 1e-9).any():
-            return False
-    return path_clear(space, a, b, clearance)
+    if not len(centres):
+        return True
+    room = np.minimum(np.asarray(keep, dtype=float), np.linalg.norm(centres - a, axis=1))
+    return not (_passes(a, b, centres) < room - 1e-9).any()
 
 
 def way_to(
