@@ -162,16 +162,39 @@ def _boxes(
     """The obstacles' boxes as arrays: (O, 2) centres, (O,) cos and sin of their yaws, and
     (O, 3) lowest and highest corners in their own frames (origin at the footprint's centre,
     axes along its sides, z unchanged), m; the sides and the top moved out by ``margin``, m."""
-    obs = obstacles or space.obstacles
+    return _box_arrays(space.floor_z, obstacles or space.obstacles, margin)
+
+
+def _box_arrays(
+    floor_z: float, obs: tuple[Obstacle, ...], margin: float = 0.0
+) -> tuple[NDArray, ...]:
+    """:func:`_boxes` of ``obs`` standing on a floor at ``floor_z``, m."""
     centre = np.array([ob.center for ob in obs], dtype=float).reshape(-1, 2)
     yaw = [ob.yaw for ob in obs]
     c = np.array([np.cos(y) for y in yaw])
     s = np.array([np.sin(y) for y in yaw])
     size = np.array([ob.size for ob in obs], dtype=float).reshape(-1, 3)
     half = 0.5 * size[:, :2] + margin
-    lo = np.column_stack([-half, np.full(len(obs), space.floor_z)])
-    hi = np.column_stack([half, space.floor_z + size[:, 2] + margin])
+    lo = np.column_stack([-half, np.full(len(obs), floor_z)])
+    hi = np.column_stack([half, floor_z + size[:, 2] + margin])
     return centre, c, s, lo, hi
+
+
+@functools.lru_cache(maxsize=64)
+def _boxes_cached(
+    floor_z: float, obstacles: tuple[Obstacle, ...], margin: float
+) -> tuple[NDArray, ...]:
+    """:func:`_box_arrays`, kept (read-only) for the next call on the same boxes."""
+    out = _box_arrays(floor_z, obstacles, margin)
+    for x in out:
+        x.flags.writeable = False
+    return out
+
+
+DENSE_PAIRS = 4096
+"""Up to this many (obstacle, segment) pairs :func:`segment_blocked` tests every segment
+against every box; beyond, only the pairs whose bounding boxes meet (a query of the
+footprints' search tree), which on a floor of thousands of boxes is a few per segment."""
 
 
 def segment_blocked(
@@ -183,7 +206,9 @@ def segment_blocked(
 ) -> NDArray[np.bool_]:
     """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
 
-    The slab test, for all segments and obstacles at once.
+    The slab test, for all segments and obstacles at once (for the pairs whose bounding
+    boxes meet where there are more than :data:`DENSE_PAIRS`: the same test, the same
+    answer).
 
     Args:
         space: gives the floor height (obstacles stand on the floor).
@@ -194,8 +219,37 @@ def segment_blocked(
     a = np.array(starts, dtype=float, ndmin=2)
     b = np.array(ends, dtype=float, ndmin=2)
     a, b = np.broadcast_arrays(a, b)
-    centre, c, s, lo, hi = (x[:, None] for x in _boxes(space, obstacles, margin))
-    # Both ends in each obstacle's frame, (O, N) per axis.
+    obs = tuple(obstacles) or space.obstacles
+    if len(obs) * len(a) <= DENSE_PAIRS:
+        boxes = (x[:, None] for x in _boxes(space, obs, margin))
+        return _slab_hits(*boxes, a, b).any(axis=0)
+    tree = _footprint_tree(obs, float(margin), threading.get_ident())
+    tol = NEAR_TOLERANCE
+    lo_xy = np.minimum(a[:, :2], b[:, :2]) - tol
+    hi_xy = np.maximum(a[:, :2], b[:, :2]) + tol
+    seg, ob = tree.query(shapely.box(lo_xy[:, 0], lo_xy[:, 1], hi_xy[:, 0], hi_xy[:, 1]))
+    blocked = np.zeros(len(a), dtype=bool)
+    if seg.size:
+        centre, c, s, lo, hi = _boxes_cached(float(space.floor_z), obs, float(margin))
+        hit = _slab_hits(centre[ob], c[ob], s[ob], lo[ob], hi[ob], a[seg], b[seg])
+        blocked[seg[hit]] = True
+    return blocked
+
+
+def _slab_hits(
+    centre: NDArray,
+    c: NDArray,
+    s: NDArray,
+    lo: NDArray,
+    hi: NDArray,
+    a: NDArray,
+    b: NDArray,
+) -> NDArray[np.bool_]:
+    """Whether segments a-b cross boxes (the slab test), elementwise: boxes as
+    :func:`_boxes` gives them with shapes (..., 2), (...), (...), (..., 3), (..., 3) and
+    (N, 3) segment ends, broadcast to (...) over the boxes' leading axes (O, 1 against N
+    segments gives (O, N); P gathered pairs give (P,))."""
+    # Both ends in each obstacle's frame, per axis.
     qa, qb = [], []
     for p, q in ((a, qa), (b, qb)):
         dx, dy = p[:, 0] - centre[..., 0], p[:, 1] - centre[..., 1]
@@ -217,7 +271,7 @@ def segment_blocked(
             tmin = np.where(outside, np.inf, tmin)
             t0 = np.maximum(t0, tmin)
             t1 = np.minimum(t1, tmax)
-    return (t0 <= t1).any(axis=0)
+    return t0 <= t1
 
 
 def floor_view(

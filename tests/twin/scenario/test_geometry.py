@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -14,7 +15,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.scenario import load_scenario
+from twin.scenario import geometry, load_scenario
 from twin.scenario.geometry import (
     BROADCAST_PAIRS,
     inside_obstacle,
@@ -99,6 +100,46 @@ def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin
     for ob in space.obstacles:
         if ob not in near:
             assert not inside_obstacle(ob, np.vstack([a, b])[:, :2], margin).any()
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    boxes=st.lists(
+        st.tuples(
+            st.floats(-20.0, 20.0),
+            st.floats(-20.0, 20.0),
+            st.floats(0.05, 6.0),
+            st.floats(0.05, 6.0),
+            st.floats(0.1, 4.0),
+            st.sampled_from([0.0, 0.0, 90.0, 30.0, -135.0]),
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    margin=st.sampled_from([0.0, 0.05, 0.3]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_the_culled_slab_test_is_the_dense_one(space, boxes, margin, seed):
+    # Above DENSE_PAIRS only the pairs whose bounding boxes meet are tested: the same answer,
+    # also for segments that graze a box's side, start on it or run along it.
+    obstacles = tuple(
+        Obstacle(name=f"b{k}", center=(x, y), size=(sx, sy, h), yaw_deg=yaw)
+        for k, (x, y, sx, sy, h, yaw) in enumerate(boxes)
+    )
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([-25.0, -25.0, space.floor_z]), np.array([25.0, 25.0, space.floor_z + 5])
+    a, b = rng.uniform(lo, hi, (300, 3)), rng.uniform(lo, hi, (300, 3))
+    first = obstacles[0]
+    half = 0.5 * first.size[0] + margin
+    a[:50, 0] = b[:50, 0] = first.center[0] + half  # along the first box's side (x, at yaw 0)
+    b[50:100, :2] = a[50:100, :2]  # vertical segments
+    a[100:150, :2] = first.center  # starting over the first box
+    with mock.patch.object(geometry, "DENSE_PAIRS", 10**9):
+        dense = segment_blocked(space, a, b, obstacles, margin)
+    with mock.patch.object(geometry, "DENSE_PAIRS", 0):
+        culled = segment_blocked(space, a, b, obstacles, margin)
+    np.testing.assert_array_equal(culled, dense)
+    assert dense.any()
 
 
 def _box_frame(obstacle: Obstacle, points: np.ndarray) -> np.ndarray:
