@@ -274,13 +274,7 @@ class RouteGraph:
         return int(min(hits)) if len(hits) else None
 
     def _connect(self, node: int, point: NDArray[np.float64], region: int) -> None:
-        members = np.flatnonzero(self._region_of == region)
-        d = self.points[members] - point
-        members = members[_tangent(d, self._to_prev[members], self._to_next[members])]
-        ends = self.points[members]
-        visible = self._visible(region, np.broadcast_to(point, ends.shape), ends)
-        members = members[visible]
-        lengths = np.linalg.norm(self.points[members] - point, axis=1)
+        members, lengths = self._links(point, region)
         self.graph.add_weighted_edges_from(
             (node, int(k), float(w)) for k, w in zip(members, lengths, strict=True)
         )
@@ -350,6 +344,63 @@ class RouteGraph:
     def length(self, start: ArrayLike, goal: ArrayLike) -> float:
         """The length of :meth:`path`, m (raises as it does)."""
         return _polyline_length(self.path(start, goal))
+
+    def lengths(self, points: ArrayLike) -> NDArray[np.float64]:
+        """(P, P) the length of :meth:`path` between every two of (P, 2) ``points``, m
+        (raises as it does): each point is joined to the corners it sees once, and one
+        search from each point reaches every other, where ``path`` joins and searches
+        once per pair."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        n = len(pts)
+        out = np.zeros((n, n))
+        regions = [self.region_of(p) for p in pts]
+        links = [
+            None if r is None else self._links(p, r) for p, r in zip(pts, regions, strict=True)
+        ]
+        for i in range(n):
+            reached: dict[int, float] = {}
+            routes: dict[int, list[int]] = {}
+            if links[i] is not None and len(links[i][0]):
+                self.graph.add_weighted_edges_from(
+                    (_START, int(k), float(w)) for k, w in zip(*links[i], strict=True)
+                )
+                try:
+                    reached, routes = nx.single_source_dijkstra(self.graph, _START)
+                finally:
+                    self.graph.remove_node(_START)
+            for j in range(n):
+                if j == i:
+                    out[i, j] = self.length(pts[i], pts[j])
+                    continue
+                if regions[j] != regions[i] or regions[i] is None:
+                    out[i, j] = self.length(pts[i], pts[j])  # raises, or a shared region
+                    continue
+                if self._visible(regions[i], pts[i][None], pts[j][None])[0]:
+                    out[i, j] = _polyline_length(np.stack([pts[i], pts[j]]))
+                    continue
+                best, via = math.inf, -1
+                for k, w in zip(*links[j], strict=True):
+                    total = reached.get(int(k), math.inf) + w
+                    if total < best:
+                        best, via = total, int(k)
+                if via < 0:
+                    out[i, j] = self.length(pts[i], pts[j])  # raises: no chain of corners
+                    continue
+                inner = [self.points[k] for k in routes[via][1:]]
+                out[i, j] = _polyline_length(np.stack([pts[i], *inner, pts[j]]))
+        return out
+
+    def _links(self, point: NDArray[np.float64], region: int) -> tuple[NDArray, NDArray]:
+        """The corners of ``region`` that ``point`` sees and is tangent to (as
+        :meth:`_connect` joins them) and their distances, m: (L,) and (L,)."""
+        members = np.flatnonzero(self._region_of == region)
+        d = self.points[members] - point
+        members = members[_tangent(d, self._to_prev[members], self._to_next[members])]
+        ends = self.points[members]
+        visible = self._visible(region, np.broadcast_to(point, ends.shape), ends)
+        members = members[visible]
+        lengths = np.linalg.norm(self.points[members] - point, axis=1)
+        return members, lengths
 
 
 def _polyline_length(path: NDArray[np.float64]) -> float:

@@ -308,7 +308,7 @@ def plan_site(
     points = [np.zeros(2), *(stations[c].xy for c in stations)]
     keys = list(stations)
     try:
-        dist = np.array([[graph.length(a, b) for b in points] for a in points])
+        dist = graph.lengths(points)
     except NoPathError as exc:
         raise MapError(floor.source, f"no free path between two stations: {exc}") from None
     if wanted is None:
@@ -542,7 +542,7 @@ def _first_two(
     else:
         points = [stations[k].xy for k in keys]
         try:
-            between = np.array([[graph.length(a, b) for b in points] for a in points])
+            between = graph.lengths(points)
         except NoPathError as exc:
             raise MapError(source, f"no free path between two stations: {exc}") from None
         # A node at no distance from every station: the best open tour from it starts

@@ -2,7 +2,7 @@
 the child anywhere in the camera's floor view, reachable with the parent's clearance.
 
 Candidates lie on a grid over the reachable floor, within a band of distances from the
-camera's floor view; each is scored by :func:`twin.scenario.visibility.station_visibility`
+camera's floor view; each is scored by :func:`twin.scenario.visibility.stations_visibility`
 (the fraction of the view's floor whose prisms the instrument sees, in range and clear of
 obstacles), the same test the scenario's validation applies to a station. The station is
 the candidate that sees the most, the nearest to a preferred distance from the view among
@@ -21,7 +21,7 @@ from shapely.geometry.base import BaseGeometry
 from calib.camera import TsaiCamera
 from twin.scenario.geometry import floor_view
 from twin.scenario.schema import Space
-from twin.scenario.visibility import station_visibility
+from twin.scenario.visibility import stations_visibility
 
 GRID = 0.5
 """Spacing of the candidate stations, m."""
@@ -103,8 +103,10 @@ def choose_station(
         candidates = candidates[np.all(near >= AVOID_RADIUS, axis=1)]
     best: Station | None = None
     best_key = (-1.0, 0.0)
-    for xy in candidates:
-        frac = station_visibility(space, camera, xy, instrument_z, prism_height, instrument_range)
+    fractions = stations_visibility(
+        space, camera, candidates, instrument_z, prism_height, instrument_range
+    )
+    for xy, frac in zip(candidates, fractions.tolist(), strict=True):
         key = (
             round(frac / SEES_EQUALLY),
             -abs(float(np.linalg.norm(xy - centre)) - PREFERRED),

@@ -5,7 +5,7 @@ cameras whose reference data sets the first station can take."""
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from calib.camera import TsaiCamera
 from twin.scenario.geometry import (
@@ -46,22 +46,49 @@ def station_visibility(
     Returns:
         The fraction, 0 when the camera sees no such floor.
     """
+    station = np.asarray(station_xy, dtype=float).reshape(1, 2)
+    fraction = stations_visibility(
+        space, camera, station, instrument_z, prism_height, instrument_range
+    )
+    return float(fraction[0])
+
+
+SEGMENTS_AT_ONCE = 100_000
+"""Lines of sight :func:`stations_visibility` tests in one call (bounds its memory)."""
+
+
+def stations_visibility(
+    space: Space,
+    camera: TsaiCamera,
+    stations_xy: ArrayLike,
+    instrument_z: float,
+    prism_height: float,
+    instrument_range: tuple[float, float],
+) -> NDArray[np.float64]:
+    """:func:`station_visibility` from each of (K, 2) stations (m): (K,) fractions. The
+    camera's floor view is cast once, and the lines of sight of many stations are tested
+    in one call."""
+    stations = np.asarray(stations_xy, dtype=float).reshape(-1, 2)
+    out = np.zeros(len(stations))
     floor = floor_view(camera, space.floor_z, max_range=60.0)
-    if len(floor) == 0:
-        return 0.0
-    station = np.asarray(station_xy, dtype=float).reshape(2)
-    # Only obstacles near the view and the station can hide the one from the other.
-    near = obstacles_near(space.obstacles, np.vstack([floor[:, :2], station]), CHILD_CLEARANCE)
+    if len(floor) == 0 or len(stations) == 0:
+        return out
+    # Only obstacles near the view can hold a sample of it.
+    near = obstacles_near(space.obstacles, floor[:, :2], CHILD_CLEARANCE)
     ok = inside_space(space, floor[:, :2], CHILD_CLEARANCE)
     ok &= ~inside_obstacles(near, floor[:, :2], CHILD_CLEARANCE).any(axis=0)
     floor = floor[ok]
     if len(floor) == 0:
-        return 0.0
+        return out
     targets = floor + np.array([0.0, 0.0, prism_height])
-    inst = np.array([station[0], station[1], instrument_z])
-    dist = np.linalg.norm(targets - inst, axis=1)
-    in_range = (dist >= instrument_range[0]) & (dist <= instrument_range[1])
-    if not near:
-        return float(np.mean(in_range))
-    clear = ~segment_blocked(space, np.broadcast_to(inst, targets.shape), targets, near)
-    return float(np.mean(in_range & clear))
+    inst = np.column_stack([stations, np.full(len(stations), instrument_z)])
+    dist = np.linalg.norm(targets[None] - inst[:, None], axis=2)  # (K, M)
+    seen = (dist >= instrument_range[0]) & (dist <= instrument_range[1])
+    if space.obstacles:
+        step = max(1, SEGMENTS_AT_ONCE // len(targets))
+        for lo in range(0, len(stations), step):
+            rows, cols = np.nonzero(seen[lo : lo + step])
+            if rows.size:
+                blocked = segment_blocked(space, inst[lo + rows], targets[cols])
+                seen[lo + rows[blocked], cols[blocked]] = False
+    return np.mean(seen, axis=1)

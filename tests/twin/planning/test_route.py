@@ -185,3 +185,23 @@ def test_a_hall_with_two_thousand_corners_builds_in_seconds() -> None:
     path = graph.path((0.5, 0.5), (59.5, 14.5))
     assert site.buffer(1e-6).covers(LineString(path))
     assert _length(path) >= math.dist((0.5, 0.5), (59.5, 14.5))
+
+
+def test_all_lengths_at_once_are_each_pair_alone() -> None:
+    # lengths() joins each point once and searches once from each: the lengths of path().
+    rng = np.random.default_rng(7)
+    site = _benchmark_site(quad_segs=2)
+    graph = RouteGraph(site)
+    x0, y0, x1, y1 = site.bounds
+    points = rng.uniform((x0, y0), (x1, y1), (60, 2))
+    points = points[[graph.region_of(p) is not None for p in points]][:12]
+    points = np.vstack([points, points[:1]])  # a point twice: no length between them
+    each = np.array([[graph.length(a, b) for b in points] for a in points])
+    assert_allclose(graph.lengths(points), each, rtol=1e-12, atol=1e-12)
+    assert np.sum(each > 1.001 * np.linalg.norm(points[:, None] - points[None], axis=2)) > 10
+
+    two = RouteGraph(MultiPolygon([box(0, 0, 4, 4), box(6, 0, 10, 4)]))
+    with pytest.raises(NoPathError, match="separate regions"):
+        two.lengths([(1, 1), (2, 2), (8, 1)])
+    with pytest.raises(NoPathError, match=r"the goal \(5.000, 1.000\) is outside"):
+        two.lengths([(1, 1), (5, 1)])
