@@ -154,7 +154,11 @@ OFFICE_TILT_DEG = 30.0
 
 
 def office_floor(
-    width: float = 60.0, height: float = 60.0, cameras: int = 30, seed: int = 0
+    width: float = 60.0,
+    height: float = 60.0,
+    cameras: int = 30,
+    seed: int = 0,
+    rough: float = 0.0,
 ) -> SampleFloor:
     """A generated office floor of ``width`` x ``height`` m with ``cameras`` cameras.
 
@@ -166,6 +170,8 @@ def office_floor(
     a corridor camera at one end of a stretch between two crossings, beside a wall, looking
     along it; a room camera at the middle of the wall opposite its door, looking at the
     door. Corridor and room cameras alternate, each kind in an order drawn from ``seed``.
+    With ``rough`` > 0 each free cell beside a wall is blocked with that probability (the
+    ragged walls of a SLAM map, and a floor of thousands of boxes).
 
     Raises:
         ValueError: fewer than 2 cameras, a floor under 20 m a side, or more cameras than
@@ -265,6 +271,13 @@ def office_floor(
                 "image_size": [320, 240],
             }
         )
+    if rough > 0.0:
+        wall = np.zeros_like(free)
+        wall[1:] |= ~free[:-1]
+        wall[:-1] |= ~free[1:]
+        wall[:, 1:] |= ~free[:, :-1]
+        wall[:, :-1] |= ~free[:, 1:]
+        free &= ~(wall & (rng.random(free.shape) < rough))
     return SampleFloor(free, (0.0, 0.0), out, width - 2 * m, len(centres[1]))
 
 
@@ -314,6 +327,7 @@ def write_office_floor(
     height: float = 60.0,
     cameras: int = 30,
     seed: int = 0,
+    rough: float = 0.0,
 ) -> tuple[Path, Path]:
     """Write :func:`office_floor`'s ``map.png``, ``map.yaml`` and ``cameras.yaml`` into
     ``folder``; returns the map's YAML and the cameras file."""
@@ -322,7 +336,7 @@ def write_office_floor(
         f"{seed}, twin.planning.sample_floor),\n"
         "# in the map's frame; position z is the height above the floor, m.\n"
     )
-    return _write(folder, office_floor(width, height, cameras, seed), header)
+    return _write(folder, office_floor(width, height, cameras, seed, rough), header)
 
 
 def _write(folder: str | Path, floor: SampleFloor, header: str) -> tuple[Path, Path]:
@@ -356,10 +370,15 @@ def main(argv: list[str] | None = None) -> int:
         help="an office floor of this size, m (default: the hospital floor)",
     )
     parser.add_argument("--seed", type=int, default=0, help="the office floor's seed")
+    parser.add_argument(
+        "--rough", type=float, default=0.0, help="the office walls' raggedness (0 to 1)"
+    )
     args = parser.parse_args(argv)
     if args.office:
         width, height = args.office
-        grid, cams = write_office_floor(args.folder, width, height, args.cameras, args.seed)
+        grid, cams = write_office_floor(
+            args.folder, width, height, args.cameras, args.seed, args.rough
+        )
     else:
         grid, cams = write_floor(args.folder, args.cameras)
     print(f"wrote {grid} and {cams}")
