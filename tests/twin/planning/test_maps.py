@@ -603,3 +603,37 @@ def test_load_map_case_and_yml(tmp_path: Path):
     assert load_map(renamed).free.area == pytest.approx(58.0, abs=CELL)
     with pytest.raises(TypeError):
         load_map(renamed, section_height=0.3)
+
+
+def test_a_ragged_floor_shrinks_inside_the_exact_answer_and_once():
+    # A 20 x 20 m room whose walls are ragged by 5 cm (8000 vertices, a SLAM map's walls):
+    # shrunk after a 5 cm simplification and 5 cm more, in a second (GEOS takes half a
+    # minute for the exact answer), inside the exact answer (every point 0.5 m from the
+    # walls) and at most 10 cm short of it; asked again, the same geometry comes back.
+    import time
+
+    from shapely.geometry import box
+
+    from twin.planning import floor_map
+
+    rng = np.random.default_rng(3)
+    side = np.linspace(0.0, 20.0, 2001)[:-1]
+    bump = lambda: 0.05 * rng.integers(0, 2, len(side))  # noqa: E731
+    ring = np.concatenate(
+        [
+            np.column_stack([side, bump()]),
+            np.column_stack([20.0 - bump(), side]),
+            np.column_stack([20.0 - side, 20.0 - bump()]),
+            np.column_stack([bump(), 20.0 - side]),
+        ]
+    )
+    free = Polygon(ring)
+    assert len(ring) > floor_map.SIMPLIFY_ABOVE
+    floor = FloorMap(free=free)
+    start = time.perf_counter()
+    reach = floor.reachable(0.5)
+    assert time.perf_counter() - start < 5.0
+    assert floor.reachable(0.5) is reach
+    assert free.contains(reach)
+    assert free.boundary.distance(reach.boundary) >= 0.5 - 1e-9
+    assert reach.contains(box(0.65, 0.65, 19.35, 19.35))
