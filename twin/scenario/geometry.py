@@ -79,6 +79,10 @@ def _footprints(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> 
     return _Footprints(centres, polygons, bounds)
 
 
+TREE_PAIRS = 100_000
+"""Above this many (obstacle, point) pairs, :func:`inside_obstacles` finds the pairs whose
+bounding boxes meet in a search tree rather than comparing every pair."""
+
 NEAR_TOLERANCE = 1e-6
 """:func:`obstacles_near` grows the points' bounding box by this much, m: far more than the
 footprints' corners are rounded by, far less than anything built."""
@@ -103,7 +107,22 @@ def inside_obstacles(
     footprint placed in W rounds its sides differently).
     """
     p = np.array(points_xy, dtype=float, ndmin=2)
-    feet = _footprints(tuple(obstacles), float(margin), threading.get_ident())
+    obstacles = tuple(obstacles)
+    feet = _footprints(obstacles, float(margin), threading.get_ident())
+    if len(obstacles) * len(p) > TREE_PAIRS:
+        # The pairs whose bounding boxes meet, from the search tree, then the same tests.
+        tree = _footprint_tree(obstacles, float(margin), threading.get_ident())
+        tol = NEAR_TOLERANCE
+        x, y = p[:, 0], p[:, 1]
+        pt, ob = tree.query(shapely.box(x - tol, y - tol, x + tol, y + tol))
+        dx = p[pt, 0] - feet.centres[ob, 0]
+        dy = p[pt, 1] - feet.centres[ob, 1]
+        b = feet.bounds[ob]
+        near = (dx >= b[:, 0]) & (dy >= b[:, 1]) & (dx <= b[:, 2]) & (dy <= b[:, 3])
+        pt, ob, dx, dy = pt[near], ob[near], dx[near], dy[near]
+        inside = np.zeros((len(obstacles), len(p)), dtype=bool)
+        inside[ob, pt] = shapely.intersects_xy(feet.polygons[ob], dx, dy)
+        return inside
     dx = np.ascontiguousarray(p[:, 0]) - feet.centres[:, :1]
     dy = np.ascontiguousarray(p[:, 1]) - feet.centres[:, 1:]
     if dx.size <= BROADCAST_PAIRS:

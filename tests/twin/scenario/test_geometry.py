@@ -242,6 +242,9 @@ def test_many_points_at_once_are_each_point_alone(footprints, margin, seed):
     alone = np.column_stack([inside_obstacles(obs, p[None], margin)[:, 0] for p in points])
     assert together.shape == (len(obs), len(points))
     np.testing.assert_array_equal(together, alone)
+    # Beyond TREE_PAIRS the pairs come from the footprints' search tree: the same answer.
+    with mock.patch.object(geometry, "TREE_PAIRS", 0):
+        np.testing.assert_array_equal(inside_obstacles(obs, points, margin), together)
 
 
 def test_no_obstacles_and_no_points():
