@@ -11,10 +11,12 @@ quicker than shapely's test of a point in a polygon.
 
 from __future__ import annotations
 
+import collections
 import functools
 import math
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import shapely
@@ -63,6 +65,30 @@ class _Footprints:
     bounds: NDArray[np.float64]
 
 
+_RECENT: collections.OrderedDict[int, tuple[tuple[Obstacle, ...], dict]] = collections.OrderedDict()
+_RECENT_LOCK = threading.Lock()
+_RECENT_SIZE = 16
+
+
+def _kept(obstacles: tuple[Obstacle, ...], what: str, margin: float, make: Any) -> Any:
+    """``make(obstacles, margin, thread)`` for this thread, kept for the very tuple
+    ``obstacles`` (of the last few used): a space's obstacles are asked for again and
+    again, and hashing thousands of them for a cache costs more than what it keeps."""
+    thread = threading.get_ident()
+    with _RECENT_LOCK:
+        entry = _RECENT.get(id(obstacles))
+        if entry is None or entry[0] is not obstacles:
+            entry = (obstacles, {})
+            _RECENT[id(obstacles)] = entry
+            while len(_RECENT) > _RECENT_SIZE:
+                _RECENT.popitem(last=False)
+        _RECENT.move_to_end(id(obstacles))
+    key = (what, margin, thread)
+    if key not in entry[1]:
+        entry[1][key] = make(obstacles, margin, thread)
+    return entry[1][key]
+
+
 @functools.lru_cache(maxsize=1024)
 def _footprints(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> _Footprints:
     """The footprints of ``obstacles`` grown by ``margin`` (m) about their centres, for one
@@ -108,10 +134,10 @@ def inside_obstacles(
     """
     p = np.array(points_xy, dtype=float, ndmin=2)
     obstacles = tuple(obstacles)
-    feet = _footprints(obstacles, float(margin), threading.get_ident())
+    feet = _kept(obstacles, "feet", float(margin), _footprints)
     if len(obstacles) * len(p) > TREE_PAIRS:
         # The pairs whose bounding boxes meet, from the search tree, then the same tests.
-        tree = _footprint_tree(obstacles, float(margin), threading.get_ident())
+        tree = _kept(obstacles, "tree", float(margin), _footprint_tree)
         tol = NEAR_TOLERANCE
         x, y = p[:, 0], p[:, 1]
         pt, ob = tree.query(shapely.box(x - tol, y - tol, x + tol, y + tol))
@@ -157,7 +183,7 @@ def obstacles_near(
     x, y = p[:, 0], p[:, 1]
     tol = NEAR_TOLERANCE
     span = shapely.box(x.min() - tol, y.min() - tol, x.max() + tol, y.max() + tol)
-    tree = _footprint_tree(obstacles, float(margin), threading.get_ident())
+    tree = _kept(obstacles, "tree", float(margin), _footprint_tree)
     near = tree.query(span, predicate="intersects")
     return tuple(obstacles[k] for k in np.sort(near))
 
@@ -199,21 +225,13 @@ def _box_arrays(
     return centre, c, s, lo, hi
 
 
-@functools.lru_cache(maxsize=64)
-def _boxes_cached(
-    floor_z: float, obstacles: tuple[Obstacle, ...], margin: float
-) -> tuple[NDArray, ...]:
-    """:func:`_box_arrays`, kept (read-only) for the next call on the same boxes."""
-    out = _box_arrays(floor_z, obstacles, margin)
-    for x in out:
-        x.flags.writeable = False
-    return out
-
-
 DENSE_PAIRS = 4096
 """Up to this many (obstacle, segment) pairs :func:`segment_blocked` tests every segment
-against every box; beyond, only the pairs whose bounding boxes meet (a query of the
-footprints' search tree), which on a floor of thousands of boxes is a few per segment."""
+against every box. Beyond, a segment that crosses the union of the boxes that stand
+higher than its ends (walls, most often), shrunk by :data:`NEAR_TOLERANCE`, is blocked
+(one test against one prepared polygon); the others are tested against the boxes whose
+footprints they cross (a query of a search tree), on a floor of thousands of boxes a few
+at most."""
 
 
 def segment_blocked(
@@ -225,9 +243,8 @@ def segment_blocked(
 ) -> NDArray[np.bool_]:
     """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
 
-    The slab test, for all segments and obstacles at once (for the pairs whose bounding
-    boxes meet where there are more than :data:`DENSE_PAIRS`: the same test, the same
-    answer).
+    The slab test, for all segments and obstacles at once (beyond :data:`DENSE_PAIRS`
+    pairs, for the few that need it: the same answer).
 
     Args:
         space: gives the floor height (obstacles stand on the floor).
@@ -242,17 +259,65 @@ def segment_blocked(
     if len(obs) * len(a) <= DENSE_PAIRS:
         boxes = (x[:, None] for x in _boxes(space, obs, margin))
         return _slab_hits(*boxes, a, b).any(axis=0)
-    tree = _footprint_tree(obs, float(margin), threading.get_ident())
-    tol = NEAR_TOLERANCE
-    lo_xy = np.minimum(a[:, :2], b[:, :2]) - tol
-    hi_xy = np.maximum(a[:, :2], b[:, :2]) + tol
-    seg, ob = tree.query(shapely.box(lo_xy[:, 0], lo_xy[:, 1], hi_xy[:, 0], hi_xy[:, 1]))
+    centre, c, s, lo, hi = _kept(
+        obs, f"boxes {space.floor_z!r}", float(margin), _boxes_of(space.floor_z)
+    )
+    lines = shapely.linestrings(np.stack([a[:, :2], b[:, :2]], axis=1))
     blocked = np.zeros(len(a), dtype=bool)
-    if seg.size:
-        centre, c, s, lo, hi = _boxes_cached(float(space.floor_z), obs, float(margin))
+    # The boxes that stand from below the lowest end to above the highest block a segment
+    # wherever it crosses their footprints: where it crosses their union shrunk by
+    # NEAR_TOLERANCE (one prepared polygon) it is blocked; the rest get the slab test.
+    z = np.concatenate([a[:, 2], b[:, 2]])
+    tall = (lo[:, 2] <= z.min()) & (hi[:, 2] >= z.max())
+    if tall.any():
+        which = f"walls {np.packbits(tall).tobytes().hex()} {space.floor_z!r}"
+        walls = _kept(obs, which, float(margin), _walls(tall))
+        blocked = np.asarray(shapely.intersects(walls, lines), dtype=bool)
+    rest = np.flatnonzero(~blocked)
+    if rest.size:
+        tree = _kept(obs, "grown tree", float(margin), _grown_tree)
+        seg, ob = tree.query(lines[rest], predicate="intersects")
+        seg = rest[seg]
         hit = _slab_hits(centre[ob], c[ob], s[ob], lo[ob], hi[ob], a[seg], b[seg])
         blocked[seg[hit]] = True
     return blocked
+
+
+def _boxes_of(floor_z: float) -> Any:
+    """``make`` of :func:`_kept`: :func:`_box_arrays` on a floor at ``floor_z`` (m),
+    read-only."""
+
+    def make(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> tuple[NDArray, ...]:
+        out = _box_arrays(floor_z, obstacles, margin)
+        for x in out:
+            x.flags.writeable = False
+        return out
+
+    return make
+
+
+def _walls(tall: NDArray[np.bool_]) -> Any:
+    """``make`` of :func:`_kept`: the union of the ``tall`` obstacles' footprints grown by
+    the margin, shrunk by :data:`NEAR_TOLERANCE`, prepared."""
+
+    def make(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> shapely.Geometry:
+        feet = [
+            _footprint(ob, margin, ob.center)
+            for ob, keep in zip(obstacles, tall, strict=True)
+            if keep
+        ]
+        union = shapely.union_all(feet).buffer(-NEAR_TOLERANCE, join_style="mitre")
+        shapely.prepare(union)
+        return union
+
+    return make
+
+
+def _grown_tree(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> shapely.STRtree:
+    """A search tree over the footprints grown by ``margin`` and :data:`NEAR_TOLERANCE` (a
+    segment that meets a box crosses its grown footprint), for one ``thread``."""
+    grown = margin + NEAR_TOLERANCE
+    return shapely.STRtree([_footprint(ob, grown, ob.center) for ob in obstacles])
 
 
 def _slab_hits(

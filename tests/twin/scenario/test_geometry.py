@@ -120,26 +120,30 @@ def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin
     seed=st.integers(0, 2**32 - 1),
 )
 def test_the_culled_slab_test_is_the_dense_one(space, boxes, margin, seed):
-    # Above DENSE_PAIRS only the pairs whose bounding boxes meet are tested: the same answer,
+    # Above DENSE_PAIRS only the segments and boxes that need it are tested: the same answer,
     # also for segments that graze a box's side, start on it or run along it.
     obstacles = tuple(
         Obstacle(name=f"b{k}", center=(x, y), size=(sx, sy, h), yaw_deg=yaw)
         for k, (x, y, sx, sy, h, yaw) in enumerate(boxes)
     )
+    # Segments up to 5 m high (over some boxes) and segments below every box's top (each
+    # box then blocks wherever the segment crosses its footprint: the union's test).
     rng = np.random.default_rng(seed)
-    lo, hi = np.array([-25.0, -25.0, space.floor_z]), np.array([25.0, 25.0, space.floor_z + 5])
-    a, b = rng.uniform(lo, hi, (300, 3)), rng.uniform(lo, hi, (300, 3))
-    first = obstacles[0]
-    half = 0.5 * first.size[0] + margin
-    a[:50, 0] = b[:50, 0] = first.center[0] + half  # along the first box's side (x, at yaw 0)
-    b[50:100, :2] = a[50:100, :2]  # vertical segments
-    a[100:150, :2] = first.center  # starting over the first box
-    with mock.patch.object(geometry, "DENSE_PAIRS", 10**9):
-        dense = segment_blocked(space, a, b, obstacles, margin)
-    with mock.patch.object(geometry, "DENSE_PAIRS", 0):
-        culled = segment_blocked(space, a, b, obstacles, margin)
-    np.testing.assert_array_equal(culled, dense)
-    assert dense.any()
+    for top in (5.0, 0.1):
+        lo = np.array([-25.0, -25.0, space.floor_z])
+        hi = np.array([25.0, 25.0, space.floor_z + top])
+        a, b = rng.uniform(lo, hi, (300, 3)), rng.uniform(lo, hi, (300, 3))
+        first = obstacles[0]
+        half = 0.5 * first.size[0] + margin
+        a[:50, 0] = b[:50, 0] = first.center[0] + half  # along the first box's side at yaw 0
+        b[50:100, :2] = a[50:100, :2]  # vertical segments
+        a[100:150, :2] = first.center  # starting over the first box
+        with mock.patch.object(geometry, "DENSE_PAIRS", 10**9):
+            dense = segment_blocked(space, a, b, obstacles, margin)
+        with mock.patch.object(geometry, "DENSE_PAIRS", 0):
+            culled = segment_blocked(space, a, b, obstacles, margin)
+        np.testing.assert_array_equal(culled, dense)
+        assert dense.any()
 
 
 def _box_frame(obstacle: Obstacle, points: np.ndarray) -> np.ndarray:
