@@ -40,11 +40,27 @@ def _site(tmp_path: Path) -> tuple[Path, Path]:
     return write_grid(tmp_path, DEAD_END), write_cameras(tmp_path, [INTO_THE_DEAD_END])
 
 
-def test_a_station_the_robots_block_is_moved_and_the_repaired_plan_written(tmp_path, capsys):
-    # The station that sees most of the view stands outside the corridor, beside the
-    # wall's end: there the parent and the child standing ahead block the corridor's mouth,
-    # and the child taking the data finds no way to any stop (0 points). The repair's
-    # station, away from it, calibrates the camera; that plan is the one written.
+def test_a_station_the_robots_cannot_reach_is_moved_and_the_repaired_plan_written(
+    tmp_path, capsys, monkeypatch
+):
+    # The map is out of date: something the map does not show stands on the first plan's
+    # station (the fault blocks that place in every run), and the parent stops short of
+    # it. The repair's station, away from it, calibrates the camera; that plan is the one
+    # written.
+    real = repair.trial_run
+    blocked: list[np.ndarray] = []  # the place, in the map's frame (W moves with the start)
+
+    def pose_of(sc) -> MapPose:
+        x, y, yaw = sc.site.map_pose
+        return MapPose(x, y, np.radians(yaw))
+
+    def out_of_date(sc):
+        if not blocked:
+            blocked.append(pose_of(sc).world2map(np.asarray(sc.calibration.visits[0].station)))
+        here = pose_of(sc).map2world(blocked[0])
+        return real(with_values(sc, {"faults.unreachable": [here.tolist()]}))
+
+    monkeypatch.setattr(repair, "trial_run", out_of_date)
     grid, cams = _site(tmp_path)
     out = tmp_path / "dead_end.toml"
     assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out)]) == 0
@@ -54,10 +70,10 @@ def test_a_station_the_robots_block_is_moved_and_the_repaired_plan_written(tmp_p
     first = np.array([float(v) for v in AWAY.search(line).groups()])
     assert "every camera of the plan is calibrated by the repaired plan" in said
     sc = load_scenario(out)
-    pose = MapPose(sc.site.map_pose[0], sc.site.map_pose[1], np.radians(sc.site.map_pose[2]))
     (visit,) = sc.calibration.visits
-    station = pose.world2map(np.asarray(visit.station))
+    station = pose_of(sc).world2map(np.asarray(visit.station))
     assert np.linalg.norm(station - first) >= AVOID_RADIUS
+    assert np.abs(first - blocked[0]).max() <= 0.005  # the place named, to the cm printed
 
 
 def test_a_plan_no_repair_mends_is_written_and_the_camera_named_with_why(
