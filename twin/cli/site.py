@@ -82,6 +82,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "obstacle, column, pillar or furniture)",
     )
     p.add_argument(
+        "--speckle",
+        type=speckle_area,
+        metavar="M2",
+        help="a ROS map's specks: blobs of occupied or unknown cells under this area with "
+        "free cells all round are read as free, m^2 (default: 0.02, 8 cells at 5 cm; a post "
+        "of 15 x 15 cm is kept); 0 keeps every cell",
+    )
+    p.add_argument(
         "--resolution",
         type=grid_resolution,
         default=0.1,
@@ -155,6 +163,14 @@ def grid_resolution(text: str) -> float:
     return value
 
 
+def speckle_area(text: str) -> float:
+    """``--speckle``: a finite number of m^2, at least 0."""
+    value = arguments.finite_float(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f"expected an area of at least 0 m^2, got {text}")
+    return value
+
+
 def visit_order(text: str) -> list[str]:
     """The cameras of ``--visits``, comma-separated (blanks around a name and empty entries,
     as from a trailing comma, are left out).
@@ -187,10 +203,18 @@ def run(args: argparse.Namespace) -> int:
         for key, value in (
             ("wall_layers", args.wall_layers),
             ("obstacle_layers", args.obstacle_layers),
+            ("speckle", args.speckle),
         )
         if value is not None
     }
-    if map_options and args.map.suffix.lower() != ".dxf":
+    if args.speckle is not None and args.map.suffix.lower() not in (".yaml", ".yml"):
+        console.print(
+            f"[red]error:[/red] --speckle: a ROS map's (map.yaml) cells; "
+            f"{escape(str(args.map))} is not a .yaml file"
+        )
+        return 2
+    layers = {k: v for k, v in map_options.items() if k != "speckle"}
+    if layers and args.map.suffix.lower() != ".dxf":
         option = "--wall-layers" if args.wall_layers is not None else "--obstacle-layers"
         console.print(
             f"[red]error:[/red] {option}: a DXF map's layers; {escape(str(args.map))} is "
@@ -246,6 +270,9 @@ def run(args: argparse.Namespace) -> int:
         f"{plan.space.resolution:g} m grid; W is the map's ({plan.pose.x:.2f}, "
         f"{plan.pose.y:.2f}) heading {math.degrees(plan.pose.yaw):.1f} deg"
     )
+    for note in plan.floor.notes:
+        if "speckle =" in note:
+            console.print(f"map: {escape(note)}")
     console.print(f"scenario: {written.path}; figure: {written.figure}")
     code = 0
     if plan.unreachable:

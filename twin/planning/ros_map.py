@@ -43,13 +43,27 @@ from calib.io.text import NotText, read_text, yaml_load
 from twin.planning.floor_map import FloorMap, MapError, MapObstacle
 from twin.planning.maps import check_keep, select_regions
 
-__all__ = ["OccupancyGrid", "grid_polygons", "load_ros_map", "read_occupancy_grid"]
+__all__ = [
+    "SPECKLE_AREA",
+    "OccupancyGrid",
+    "clean_speckle",
+    "grid_polygons",
+    "load_ros_map",
+    "read_occupancy_grid",
+]
 
 FREE = 0
 OCCUPIED = 1
 UNKNOWN = 2
 INTERMEDIATE = 3
 MODES = ("trinary", "scale", "raw")
+SPECKLE_AREA = 0.02
+"""Blobs of occupied or unknown cells smaller than this, with only free cells around them,
+are read as free (``speckle=``), m^2: 8 cells at 5 cm, a blob under 15 x 15 cm. A SLAM
+map's speckle is one to a few cells of sensor noise, and the robots' clearance grows each
+into a disc ~1 m across that cuts corridors apart; a pillar or post (15 cm square,
+0.0225 m^2, and up) is kept. Thinner things seen as a few cells (a table's or chair's
+leg) are read as free too: pass a smaller area, or 0 to keep every cell as read."""
 
 
 class OccupancyGrid:
@@ -231,6 +245,42 @@ def _classify(
     return cells
 
 
+def clean_speckle(cells: np.ndarray, most: int) -> tuple[np.ndarray, int, int, int]:
+    """Read as free the blobs of fewer than ``most`` cells that are not free (occupied,
+    unknown or intermediate) and that free cells surround.
+
+    Blobs are 8-connected (cells that touch at a corner are one blob: a wall drawn as a
+    diagonal line of cells stays one wall, and a speck touching a wall at a corner is part
+    of it); a blob that touches the image's edge is kept whatever its size. A SLAM map's
+    speckle is both: cells read occupied by sensor noise, and cells no ray ended in or
+    crossed (unknown) amid the seen floor.
+
+    Args:
+        cells: (H, W) uint8 of FREE, OCCUPIED, UNKNOWN, INTERMEDIATE.
+        most: blobs of fewer cells than this are removed (0 or 1: none).
+
+    Returns:
+        ``(cleaned, blobs, occupied, other)``: ``cells`` with the blobs FREE (a copy when
+        any is), how many blobs were removed, and how many of their cells were occupied and
+        how many unknown or intermediate.
+    """
+    blocked = cells != FREE
+    if most <= 1 or not blocked.any():
+        return cells, 0, 0, 0
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(blocked.astype(np.uint8), connectivity=8)
+    small = stats[:, cv2.CC_STAT_AREA] < most
+    edge = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
+    small[edge] = False
+    small[0] = False  # the free cells
+    remove = small[labels] & blocked
+    if not remove.any():
+        return cells, 0, 0, 0
+    occupied = int(np.count_nonzero(remove & (cells == OCCUPIED)))
+    out = cells.copy()
+    out[remove] = FREE
+    return out, int(small.sum()), occupied, int(remove.sum()) - occupied
+
+
 def grid_polygons(mask: np.ndarray) -> list[Polygon]:
     """The connected regions of a boolean grid as polygons traced along the cells' edges.
 
@@ -308,6 +358,7 @@ def load_ros_map(
     min_area: float = 0.05,
     keep: str = "all",
     height: float | None = None,
+    speckle: float = SPECKLE_AREA,
 ) -> FloorMap:
     """Read a ROS occupancy grid (map_server YAML + PGM/PNG) into a :class:`FloorMap`.
 
@@ -319,6 +370,9 @@ def load_ros_map(
             ``"largest"`` (only the largest connected region).
         height: the ceiling's height above the floor, m; default none known (a grid has
             none: 3 m written, :attr:`FloorMap.height_known` false).
+        speckle: blobs of occupied or unknown cells smaller than this with only free
+            cells around them are read as free (:func:`clean_speckle`; counted in the
+            notes), m^2; 0 keeps every cell as read. Default :data:`SPECKLE_AREA`.
 
     Returns:
         ``free``: the union of the free cells in the map frame (a Polygon, or a
@@ -328,12 +382,25 @@ def load_ros_map(
         out.
 
     Raises:
-        MapError: see :func:`read_occupancy_grid`, and a map with no free cell.
+        MapError: see :func:`read_occupancy_grid`, a map with no free cell, and a
+            ``speckle`` that is not a finite number of m^2 at least 0.
     """
     path = Path(path)
     check_keep(keep, path)
+    if (
+        isinstance(speckle, bool)
+        or not isinstance(speckle, int | float)
+        or not math.isfinite(speckle)
+        or speckle < 0.0
+    ):
+        raise MapError(
+            path,
+            f"speckle: expected an area of at least 0 m^2 (0: keep every cell), got {speckle!r}",
+        )
     grid = read_occupancy_grid(path)
     counts = np.bincount(grid.cells.ravel(), minlength=4)
+    most = math.ceil(speckle / grid.resolution**2 - 1e-9)
+    grid.cells, blobs, occupied_specks, other_specks = clean_speckle(grid.cells, most)
     if counts[FREE] == 0:
         raise MapError(
             path,
@@ -355,6 +422,11 @@ def load_ros_map(
         f"{counts[FREE]} free, {counts[OCCUPIED]} occupied, {counts[UNKNOWN]} unknown"
         + (f", {counts[INTERMEDIATE]} of intermediate occupancy" if counts[INTERMEDIATE] else ""),
     )
+    if blobs:
+        cell_notes += (
+            f"{blobs} speck(s) under speckle = {speckle:g} m^2 amid free cells read as free: "
+            f"{occupied_specks} occupied and {other_specks} unknown cells",
+        )
     obstacles = tuple(
         MapObstacle(footprint=poly, height=math.inf, name="occupied")
         for poly in sorted(occupied_cells, key=lambda p: p.area, reverse=True)
