@@ -57,6 +57,7 @@ from twin.planning.regions import (
 from twin.planning.route import TOLERANCE, NoPathError, RouteGraph
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
+from twin.scenario.cross_checks import PARENT_CLEARANCE
 from twin.scenario.errors import ScenarioError
 from twin.scenario.geometry import floor_view, inside_obstacles
 from twin.scenario.loader import validate_model
@@ -304,7 +305,7 @@ def plan_site(
         _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     cams_w = {c["name"]: _camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
-    graph = _route_graph(floor, pose, reach_w, stations)
+    graph = _clear_of_boxes(_route_graph(floor, pose, reach_w, stations), boxed)
     points = [np.zeros(2), *(stations[c].xy for c in stations)]
     keys = list(stations)
     try:
@@ -369,6 +370,36 @@ def _route_graph(
         _check_passages(floor, pose, points)
         return RouteGraph(reachable)
     return RouteGraph(pose.geometry2world(floor.reachable(passage)))
+
+
+BOX_MARGIN = PARENT_CLEARANCE + 1e-6
+"""The route keeps this far from the boxes, m, the way the scenario's loader checks it: each
+box grown by the parent's radius on every side, still a rectangle (not rounded at its
+corners), its boundary included."""
+
+
+def _clear_of_boxes(graph: RouteGraph, boxed: BoxedSpace) -> RouteGraph:
+    """``graph`` kept off the boxes grown by :data:`BOX_MARGIN`, as the loader checks the
+    route. The route keeps its clearance from the map (round, about corners); the boxes are
+    the map laid on a coarser grid (a corner up to half a cell further out) and grown
+    square, so a route that passes a speck or a wall's corner at the passage clearance can
+    run within the loader's margin of a box's corner. Returns ``graph`` itself where no
+    grown box reaches its floor."""
+    grown = [
+        shapely.box(
+            b.center[0] - 0.5 * b.size[0] - BOX_MARGIN,
+            b.center[1] - 0.5 * b.size[1] - BOX_MARGIN,
+            b.center[0] + 0.5 * b.size[0] + BOX_MARGIN,
+            b.center[1] + 0.5 * b.size[1] + BOX_MARGIN,
+        )
+        for b in boxed.boxes
+    ]
+    if not grown:
+        return graph
+    keep_out = shapely.union_all(grown)
+    if not graph.reachable.intersects(keep_out):
+        return graph
+    return RouteGraph(graph.reachable.difference(keep_out))
 
 
 def _check_passages(floor: FloorMap, pose: MapPose, points: Sequence[Point]) -> None:

@@ -122,3 +122,19 @@ def test_site_refuses_a_bad_speckle_by_name(tmp_path: Path, value: str, capsys):
     assert exc.value.code == 2
     assert "--speckle" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_route_past_specks_passes_the_loaders_check(tmp_path: Path):
+    """Kept specks (speckle 0) on a 2.4 m corridor: the route passes one at the passage
+    clearance, round about the speck but within the loader's square margin of the 0.1 m box
+    laid over it; the plan keeps off the boxes as the loader grows them, and validates."""
+    from twin.planning.camera_layout import place_cameras
+    from twin.planning.floor_shapes import dead_end
+    from twin.planning.site import plan_site
+    from twin.scenario.loader import scenario_from_dict
+
+    path = write_ros_map(dead_end(2.4), tmp_path, flaws=True, seed=0)
+    cameras = place_cameras(load_map(path), seed=0, height=3.0)
+    plan = plan_site(load_map(path, speckle=0.0), cameras, map_file=str(path))
+    scenario = scenario_from_dict(plan.scenario, file=tmp_path / "site.toml")
+    assert len(scenario.route.waypoints) == len(plan.route)
