@@ -40,6 +40,17 @@ def test_flawed_corridor_is_one_piece_after_cleaning(tmp_path: Path):
     assert cleaned[0].covers(end)
     notes = " ".join(load_map(path).notes)
     assert "speck(s) under speckle = 0.02 m^2" in notes
+    # Planned from a chosen start: every camera reachable after cleaning, not before.
+    from twin.planning.camera_layout import place_cameras
+    from twin.planning.site import plan_site
+
+    cameras = place_cameras(load_map(path), seed=0, height=3.0)
+    assert plan_site(load_map(path), cameras, map_file=str(path)).unreachable == {}
+    try:
+        left_out = plan_site(load_map(path, speckle=0.0), cameras, map_file=str(path)).unreachable
+    except MapError as exc:  # no camera reachable from where the group fits
+        left_out = str(exc)
+    assert left_out
 
 
 def _room(tmp_path: Path, blob: np.ndarray) -> Path:
@@ -138,3 +149,16 @@ def test_route_past_specks_passes_the_loaders_check(tmp_path: Path):
     plan = plan_site(load_map(path, speckle=0.0), cameras, map_file=str(path))
     scenario = scenario_from_dict(plan.scenario, file=tmp_path / "site.toml")
     assert len(scenario.route.waypoints) == len(plan.route)
+
+
+def test_site_reports_the_specks_it_read_as_free(tmp_path: Path, capsys):
+    from tests.twin.planning.test_site import CAMERAS, write_cameras, write_grid
+    from twin.cli import main
+
+    speck = (6.0, 6.0, 6.05, 6.05)  # one cell amid the room's floor
+    grid, cams = write_grid(tmp_path, [speck]), write_cameras(tmp_path, CAMERAS)
+    out = tmp_path / "site.toml"
+    assert main(["site", str(grid), "--cameras", str(cams), "--out", str(out), "--no-predict"]) == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert "map: 1 speck(s) under speckle = 0.02 m^2 amid free cells read as free" in said
+    assert "1 occupied and 0 unknown cells" in said
