@@ -1,13 +1,14 @@
 """The batch fidelity against the geometric one: the same camera position errors.
 
 On the smoke scenario the RMS camera position error of the two fidelities must agree within
-20 %, over enough trials for 20 % to be four standard deviations of their ratio. The errors
-are heavy-tailed (one direction dominates), so the geometric side needs about 280 trials
-beside 3000 batch trials; the spread is measured (bootstrap) and asserted, so the test
+a band of four standard deviations of their ratio. The errors have about one degree of
+freedom a trial (one direction dominates: the squared error spreads like a chi-square with
+one), so the RMS of N trials is known within about 0.70 / sqrt(N) and the geometric side,
+the costly one, sets the band; the spread is measured (bootstrap) and asserted, so the test
 cannot pass for want of trials. The seeds are fixed: the test's outcome does not change
-from run to run. With ``campaign.data_stops = "accuracy"`` (stops that show some LEDs) the
-band is wider, for fewer geometric trials.
-"""
+from run to run. ``benchmarks/bench_smoke_agreement.py`` holds the paper's stops to 20 %
+(280 geometric trials, the whole campaign). With ``campaign.data_stops = "accuracy"``
+(stops that show some LEDs) the band is wider, for fewer geometric trials."""
 
 from __future__ import annotations
 
@@ -26,18 +27,25 @@ SMOKE = Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml"
 
 @pytest.mark.slow
 def test_batch_and_geometric_give_the_same_rms_camera_error(tmp_path):
-    # The paper's stops, where every LED of a stop shows (the stops chosen for accuracy:
-    # the next test).
-    smoke = with_values(load_scenario(SMOKE), {"campaign.strategy": "paper"})
-    # Two worker processes: the longest test of the suite, halved.
-    kwargs = {"master_seed": 2026, "workers": 2}
-    geometric = run_montecarlo(smoke, tmp_path / "g", 280, fidelity="geometric", **kwargs)
+    """The paper's stops, where every LED of a stop shows (the stops chosen for accuracy:
+    the next test), without the reference set (no part of the position error; a geometric
+    trial takes about 0.3 s instead of 0.5 s).
+
+    120 geometric trials beside 3000 batch trials: the ratio is known within
+    sqrt(0.70**2 / 120 + 0.66**2 / 3000) = 6.5 % (first order; the bootstrap measured
+    5.7 % for these seeds, asserted below 6.25 %), and the band is four of those, 1 +- 0.25
+    (measured ratio 0.94). The 20 % band of 280 trials: the benchmark.
+    """
+    values = {"campaign.strategy": "paper", "campaign.reference_cameras": []}
+    smoke = with_values(load_scenario(SMOKE), values)
+    kwargs = {"master_seed": 2026}
+    geometric = run_montecarlo(smoke, tmp_path / "g", 120, fidelity="geometric", **kwargs)
     batch = run_montecarlo(smoke, tmp_path / "b", 3000, fidelity="batch", **kwargs)
     r = rms_ratio(errors_by_trial(geometric), errors_by_trial(batch))
-    assert r.trials_a == 280
+    assert r.trials_a == 120
     assert r.trials_b == 3000
-    assert r.std <= 0.05, f"20 % is not four standard deviations: std {r.std:.3f}"
-    assert 0.8 <= r.ratio <= 1.2, r
+    assert r.std <= 0.25 / 4, f"25 % is not four standard deviations: std {r.std:.3f}"
+    assert 0.75 <= r.ratio <= 1.25, r
 
 
 @pytest.mark.slow
