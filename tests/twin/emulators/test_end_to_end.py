@@ -38,6 +38,17 @@ SCALE = 30.0
 """Rig seconds per wall second in these tests: a drive of 3 s takes 0.1 s."""
 FPS = 100.0
 SEED = 11
+WITHOUT_REFERENCE = "\n[campaign]\nreference_cameras = []\n"
+"""What the smoke scenario's file gets for the runs that go to the end: no reference data
+set (70 points at the start that no assertion here reads), which takes their campaign's
+protocol traffic, and so their time, to less than half."""
+
+
+def _without_reference(tmp_path: Path) -> Path:
+    """The smoke scenario without its reference data set, as a file in ``tmp_path``."""
+    path = tmp_path / "smoke.toml"
+    path.write_text(SMOKE.read_text() + WITHOUT_REFERENCE)
+    return path
 
 
 def _wait_for(condition, timeout: float, what: str) -> None:
@@ -53,11 +64,12 @@ def _twin(*args: str) -> list[str]:
 
 
 def test_the_campaign_over_the_protocols_agrees_with_the_twin(tmp_path):
+    smoke = _without_reference(tmp_path)
     rig_path = tmp_path / "rig.toml"
     emulate = subprocess.Popen(
         _twin(
             "emulate",
-            str(SMOKE),
+            str(smoke),
             "--seed",
             str(SEED),
             "--time-scale",
@@ -73,13 +85,13 @@ def test_the_campaign_over_the_protocols_agrees_with_the_twin(tmp_path):
     )
     try:
         _wait_for(rig_path.exists, 60.0, "twin emulate's rig file")
-        over = run_on_rig(SMOKE, rig_path, tmp_path / "rig-run", report=False)
+        over = run_on_rig(smoke, rig_path, tmp_path / "rig-run", report=False)
     finally:
         emulate.send_signal(signal.SIGINT)
         out, _ = emulate.communicate(timeout=30)
     assert emulate.returncode == 0, out.decode()
     assert b"emulators stopped" in out
-    twin = run_scenario(SMOKE, tmp_path / "twin-run", fidelity="geometric", seed=SEED, report=False)
+    twin = run_scenario(smoke, tmp_path / "twin-run", fidelity="geometric", seed=SEED, report=False)
 
     assert over["fidelity"] == "hardware"
     cams = [(c["camera"], c["visit"]) for c in over["calibrations"]]
@@ -93,7 +105,7 @@ def test_the_campaign_over_the_protocols_agrees_with_the_twin(tmp_path):
     # the pixel noise and the LED points' own errors; 3 sigma of a 3D normal difference,
     # which a consistent pair exceeds with probability 6e-6), and so do their errors
     # against the truth.
-    sc = load_scenario(SMOKE)
+    sc = load_scenario(smoke)
     pixel = {c.name: sc.projected_led_px(c.name) for c in sc.cameras}
     (pa,), _ = predictions_from_log(read_log(tmp_path / "rig-run" / "log.mcap").messages)
     (pb,), _ = predictions_from_log(read_log(tmp_path / "twin-run" / "log.mcap").messages, pixel)
@@ -117,6 +129,17 @@ def emulation():
     em = start_emulation(SMOKE, time_scale=SCALE, camera_fps=FPS, seed=SEED)
     try:
         yield em
+    finally:
+        em.close()
+
+
+@pytest.fixture
+def emulation_without_reference(tmp_path):
+    """The emulators of the smoke scenario without its reference data set, and its file."""
+    smoke = _without_reference(tmp_path)
+    em = start_emulation(smoke, time_scale=SCALE, camera_fps=FPS, seed=SEED)
+    try:
+        yield em, smoke
     finally:
         em.close()
 
@@ -289,8 +312,9 @@ def _unknown_code(em) -> None:
     ids=["robot-unplugged", "instrument-silent", "unknown-return-code"],
 )
 def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
-    emulation, tmp_path, inject, expected, calibrated
+    emulation_without_reference, tmp_path, inject, expected, calibrated
 ):
+    emulation, smoke = emulation_without_reference
     rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
     injected: list[float] = []
 
@@ -304,7 +328,7 @@ def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
 
     thread = threading.Thread(target=fault_when_taking_data, daemon=True)
     thread.start()
-    results = run_on_rig(SMOKE, rig_path, tmp_path / "run", report=False)
+    results = run_on_rig(smoke, rig_path, tmp_path / "run", report=False)
     thread.join(timeout=5)
     assert injected, "the fault was not injected"
     for kind, count in expected.items():
