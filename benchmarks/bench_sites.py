@@ -166,12 +166,12 @@ def _counted(
     """The cameras whose floor views hold floor reachable from ``start`` (map frame, m; the
     largest reachable region when None) at the robots' clearance."""
     from twin.planning.maps import polygons_of
-    from twin.planning.site import FORMATION_CLEARANCE
+    from twin.planning.site import PASSAGE_CLEARANCE
     from twin.scenario.geometry import floor_view
     from twin.scenario.loader import validate_model
     from twin.scenario.schema import CameraConfig
 
-    pieces = polygons_of(floor.reachable(FORMATION_CLEARANCE))
+    pieces = polygons_of(floor.reachable(PASSAGE_CLEARANCE))
     if not pieces:
         return set()
     if start is not None:
