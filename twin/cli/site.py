@@ -192,6 +192,7 @@ def run(args: argparse.Namespace) -> int:
     plan's geometric run, repaired, does not calibrate every camera (the best plan is
     written), 2 for bad input."""
     from twin.planning.floor_map import MapError
+    from twin.planning.site import STATION_NEED
     from twin.planning.site_file import write_site
 
     console = Console(highlight=False, soft_wrap=True)
@@ -283,6 +284,21 @@ def run(args: argparse.Namespace) -> int:
         for cam, why in plan.unreachable.items():
             console.print(f"  {cam} {escape(why)}")
         code = 1
+    if plan.hidden:
+        console.print(
+            "[yellow]warning:[/yellow] no station sees enough of these cameras' floor views "
+            "(left out of the plan):"
+        )
+        for cam, why in plan.hidden.items():
+            console.print(f"  {cam}: {escape(why)}")
+        code = 1
+    for cam, seen in plan.partial.items():
+        console.print(
+            f"note: camera {cam!r}: its station sees {100 * seen:.0f} % of its floor view "
+            f"(no station sees {100 * STATION_NEED:.0f} %); the scenario's "
+            "calibration.min_visible_fraction is "
+            f"{plan.scenario['calibration']['min_visible_fraction']:g}"
+        )
     kept = sum(a.kept for a in written.repairs)
     if written.repairs:
         console.print(f"{len(written.repairs)} repairs tried, {kept} kept")

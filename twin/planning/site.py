@@ -88,6 +88,13 @@ STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
 ``calibration.min_visible_fraction``)."""
 
+STATION_FLOOR = 0.25
+"""Least fraction a station may see where none sees :data:`STATION_NEED` (shelves or a
+wall across the camera's view): a quarter of the view still holds the station's data set
+spread over half the view's width and depth, which a calibration needs; the plan then
+lowers the scenario's ``calibration.min_visible_fraction`` to what its stations see. A
+camera no station sees this much of is left out of the plan, named."""
+
 START_PRISM_DISTANCES = (1.5, 2.0, 1.0, 2.5)
 """How far from the start a prism left there stands, m, in the order tried."""
 START_PRISM_TURNS_DEG = (0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0, 120.0, -120.0)
@@ -129,6 +136,10 @@ class SitePlan:
         floor: the map (with the plan's ceiling).
         unreachable: the cameras left out, each with where it is and why the robots cannot
             reach its floor view from the start (map frame).
+        hidden: the cameras left out because no station sees :data:`STATION_FLOOR` of
+            their floor view, each with the best found and where (W).
+        partial: by camera name, the fraction its station sees where it is under
+            :data:`STATION_NEED` (the scenario accepts it: see :data:`STATION_FLOOR`).
     """
 
     scenario: dict[str, Any]
@@ -139,6 +150,8 @@ class SitePlan:
     route: NDArray[np.float64]
     floor: FloorMap
     unreachable: dict[str, str] = dataclasses.field(default_factory=dict)
+    hidden: dict[str, str] = dataclasses.field(default_factory=dict)
+    partial: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 def read_cameras(path: str | Path) -> list[dict[str, Any]]:
@@ -283,9 +296,10 @@ def plan_site(
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
         # best open tour over them, so that the route runs on rather than back and forth.
-        in_map = _stations(
+        in_map, hidden = _stations(
             floor, cameras, chosen, MapPose(), station_free, floor_z, resolution, avoid
         )
+        cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
         graph = RouteGraph(passable)
         first, second = _first_two(graph, in_map, wanted, floor.source)
         pose = MapPose(*_group_start(floor, parent_free, _lead_in(first, second, parent_free)), 0.0)
@@ -298,7 +312,11 @@ def plan_site(
     else:
         x, y, yaw = (float(v) for v in start)
         pose = MapPose(x, y, yaw)
-        stations = _stations(floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid)
+        stations, hidden = _stations(
+            floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid
+        )
+        cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
+    partial = {c: st.visible for c, st in stations.items() if st.visible < STATION_NEED}
     boxed = boxed_space(floor, pose, resolution)
     if start is None:  # the boxes laid in the chosen W: checked again
         space = _space(boxed, floor_z)
@@ -337,13 +355,56 @@ def plan_site(
             (cam, stations[cam].xy, heading)
             for cam, heading in zip(sequence, arrivals, strict=True)
         ],
+        min_visible=_min_visible(partial),
         site={
             "map": map_file or floor.source,
             "map_pose": [pose.x, pose.y, math.degrees(pose.yaw)],
             "resolution": resolution,
         },
     )
-    return SitePlan(scenario, pose, boxed, stations, tuple(sequence), route, floor, unreachable)
+    return SitePlan(
+        scenario,
+        pose,
+        boxed,
+        stations,
+        tuple(sequence),
+        route,
+        floor,
+        unreachable,
+        hidden,
+        partial,
+    )
+
+
+def _without(
+    floor: FloorMap,
+    hidden: Mapping[str, str],
+    cameras: Sequence[Mapping[str, Any]],
+    wanted: Sequence[str] | None,
+    unreachable: Mapping[str, str],
+) -> tuple[list[Mapping[str, Any]], list[str], list[str] | None]:
+    """The cameras, their names and the visits given (None: none given) without the
+    ``hidden`` ones (no station sees enough of them).
+
+    Raises:
+        MapError: no camera is left, naming each left out and why.
+    """
+    cameras = [c for c in cameras if str(c["name"]) not in hidden]
+    if not cameras or (wanted is not None and not set(wanted) - set(hidden)):
+        listing = "; ".join(f"{k}: {v}" for k, v in {**unreachable, **hidden}.items())
+        raise MapError(floor.source, f"no station for any camera of the plan: {listing}")
+    names = [str(c["name"]) for c in cameras]
+    return cameras, names, None if wanted is None else [c for c in wanted if c not in hidden]
+
+
+def _min_visible(partial: Mapping[str, float]) -> float:
+    """The scenario's ``calibration.min_visible_fraction``: :data:`STATION_NEED`, or where
+    a station sees less (``partial``: by camera, the fraction), a percent under the least
+    of those, to the percent below (the scenario's check computes the fraction again, in
+    the boxes laid in W)."""
+    if not partial:
+        return STATION_NEED
+    return max(STATION_FLOOR - 0.01, math.floor(100 * min(partial.values())) / 100 - 0.01)
 
 
 def _route_graph(
@@ -464,10 +525,13 @@ def _stations(
     floor_z: float,
     resolution: float,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
-) -> dict[str, Station]:
+) -> tuple[dict[str, Station], dict[str, str]]:
     """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
-    (``station_free[0]``) where one there sees enough, else on the floor the parent can
-    reach (``station_free[1]``); away from the camera's places in ``avoid`` (map frame)."""
+    (``station_free[0]``) where one there sees :data:`STATION_NEED`, else on the floor the
+    parent can reach (``station_free[1]``), else the one that sees the most of the two
+    where it sees :data:`STATION_FLOOR`; away from the camera's places in ``avoid`` (map
+    frame). Returns the stations by camera name, and the cameras with none, each with
+    why (the best fraction found and where)."""
     boxed = boxed_space(floor, pose, resolution)
     space = _space(boxed, floor_z)
     _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
@@ -476,26 +540,48 @@ def _stations(
     ts = Noise().total_station
     wheres = [pose.geometry2world(g) for g in station_free if not g.is_empty]
     out: dict[str, Station] = {}
+    hidden: dict[str, str] = {}
     for name in chosen:
         camera = validate_model(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
-        for k, where in enumerate(wheres):
-            try:
-                out[name] = choose_station(
-                    name,
-                    camera,
-                    space,
-                    where,
-                    instrument_z=floor_z + INSTRUMENT_HEIGHT,
-                    prism_height=float(np.mean([c[2] for c in marker.cubes])),
-                    instrument_range=(ts.range_min, ts.range_max),
-                    need=STATION_NEED,
-                    avoid=_avoided(avoid, name, pose),
-                )
+        found: list[Station] = []
+        best: Station | None = None
+        # The roomy floor first, then all the parent reaches; where no station sees
+        # STATION_NEED, the best of those that see STATION_FLOOR.
+        for need in (STATION_NEED, STATION_FLOOR):
+            for where in wheres:
+                try:
+                    found.append(
+                        choose_station(
+                            name,
+                            camera,
+                            space,
+                            where,
+                            instrument_z=floor_z + INSTRUMENT_HEIGHT,
+                            prism_height=float(np.mean([c[2] for c in marker.cubes])),
+                            instrument_range=(ts.range_min, ts.range_max),
+                            need=need,
+                            avoid=_avoided(avoid, name, pose),
+                        )
+                    )
+                    if need == STATION_NEED:
+                        break
+                except NoStationError as exc:
+                    if exc.best is not None and (best is None or exc.best.visible > best.visible):
+                        best = exc.best
+            if found:
                 break
-            except NoStationError as exc:
-                if k == len(wheres) - 1:
-                    raise MapError(floor.source, str(exc)) from None
-    return out
+        if found:
+            out[name] = max(found, key=lambda st: st.visible)
+        elif best is None:
+            hidden[name] = "no place the robots reach near its floor view"
+        else:
+            x, y = pose.world2map(best.xy)
+            hidden[name] = (
+                f"no station sees {100 * STATION_FLOOR:.0f} % of its floor view (walls or "
+                f"obstacles hide it): at best {100 * best.visible:.0f} % from ({x:.2f}, "
+                f"{y:.2f}); is the camera placed and aimed as in the map's frame?"
+            )
+    return out, hidden
 
 
 def _avoided(
@@ -940,6 +1026,7 @@ def _scenario(
     start_prism: NDArray | None,
     visits: list[tuple[str, NDArray, float]],
     site: dict[str, Any],
+    min_visible: float = STATION_NEED,
 ) -> dict[str, Any]:
     controls = (
         []
@@ -971,7 +1058,8 @@ def _scenario(
             "visits": [
                 {"camera": cam, "station": xy.tolist(), "yaw_deg": heading}
                 for cam, xy, heading in visits
-            ]
+            ],
+            **({} if min_visible == STATION_NEED else {"min_visible_fraction": min_visible}),
         },
         "site": site,
     }

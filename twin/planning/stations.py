@@ -60,7 +60,11 @@ class Station:
 
 class NoStationError(ValueError):
     """No reachable place sees enough of a camera's view: the message names the camera,
-    the best fraction found and where."""
+    the best fraction found and where; ``best`` is that place (None where there is none)."""
+
+    def __init__(self, message: str, best: Station | None = None) -> None:
+        super().__init__(message)
+        self.best = best
 
 
 def choose_station(
@@ -127,7 +131,8 @@ def choose_station(
         )
         raise NoStationError(
             f"no station{avoided} sees {100 * need:.0f} % of camera {camera_name!r}'s floor "
-            f"view: {found}; is the camera placed and aimed as in the map's frame?"
+            f"view: {found}; is the camera placed and aimed as in the map's frame?",
+            best,
         )
     return best
 
