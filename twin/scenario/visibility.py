@@ -34,8 +34,9 @@ def station_visibility(
     """Fraction of a camera's reachable floor view whose prisms the total station sees from
     a station (line of sight clear of obstacles, slope distance in range).
 
-    The view is sampled on a grid over the image; samples in obstacles or closer than a
-    child's radius to a wall are not counted.
+    The view is sampled on a grid over the image; samples in obstacles, closer than a
+    child's radius to a wall, or hidden from the camera itself by an obstacle (a child
+    there would show no LED) are not counted.
 
     Args:
         space: the map. camera: the camera's nominal model (W).
@@ -77,10 +78,13 @@ def stations_visibility(
     near = obstacles_near(space.obstacles, floor[:, :2], CHILD_CLEARANCE)
     ok = inside_space(space, floor[:, :2], CHILD_CLEARANCE)
     ok &= ~inside_obstacles(near, floor[:, :2], CHILD_CLEARANCE).any(axis=0)
-    floor = floor[ok]
-    if len(floor) == 0:
+    targets = floor[ok] + np.array([0.0, 0.0, prism_height])
+    # Only the floor the camera itself sees: a wall just before a camera hides the view's
+    # far floor from it, whoever stands there.
+    if len(targets) and space.obstacles:
+        targets = targets[~segment_blocked(space, camera.position, targets)]
+    if len(targets) == 0:
         return out
-    targets = floor + np.array([0.0, 0.0, prism_height])
     inst = np.column_stack([stations, np.full(len(stations), instrument_z)])
     dist = np.linalg.norm(targets[None] - inst[:, None], axis=2)  # (K, M)
     seen = (dist >= instrument_range[0]) & (dist <= instrument_range[1])
