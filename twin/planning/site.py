@@ -38,7 +38,9 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.ops import nearest_points
 
+from calib.camera import TsaiCamera
 from calib.io.text import read_text, yaml_load
+from twin.campaign.plan.accurate_stops import partial_view_stops
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
 from twin.planning.ceiling import check_ceiling, site_ceiling
 from twin.planning.floor_map import FloorMap, MapError
@@ -541,10 +543,22 @@ def _stations(
     wheres = [pose.geometry2world(g) for g in station_free if not g.is_empty]
     out: dict[str, Station] = {}
     hidden: dict[str, str] = {}
+    assembly = marker.assembly()
+    instrument_range = (ts.range_min, ts.range_max)
     for name in chosen:
         camera = validate_model(CameraConfig, _camera_in_world(by_name[name], pose, floor_z)).tsai()
         found: list[Station] = []
         best: Station | None = None
+        why = "no place the robots reach near its floor view"
+
+        def gives_data(xy: NDArray[np.float64], camera: TsaiCamera = camera) -> bool:
+            # The campaign's own planner of data stops, from the station (no anchor yet).
+            return bool(
+                partial_view_stops(
+                    space, assembly, instrument_range, camera, xy, floor_z + INSTRUMENT_HEIGHT, None
+                )
+            )
+
         # The roomy floor first, then all the parent reaches; where no station sees
         # STATION_NEED, the best of those that see STATION_FLOOR.
         for need in (STATION_NEED, STATION_FLOOR):
@@ -561,19 +575,22 @@ def _stations(
                             instrument_range=(ts.range_min, ts.range_max),
                             need=need,
                             avoid=_avoided(avoid, name, pose),
+                            gives_data=gives_data,
                         )
                     )
                     if need == STATION_NEED:
                         break
                 except NoStationError as exc:
-                    if exc.best is not None and (best is None or exc.best.visible > best.visible):
+                    if exc.best is None:
+                        why = str(exc)
+                    elif best is None or exc.best.visible > best.visible:
                         best = exc.best
             if found:
                 break
         if found:
             out[name] = max(found, key=lambda st: st.visible)
         elif best is None:
-            hidden[name] = "no place the robots reach near its floor view"
+            hidden[name] = why
         else:
             x, y = pose.world2map(best.xy)
             hidden[name] = (

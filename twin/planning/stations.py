@@ -11,6 +11,7 @@ equals (the paper's stations stand 4-8 m from their cameras' views).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,10 @@ NEAREST, FARTHEST = 2.0, 12.0
 
 PREFERRED = 5.0
 """Distance from the view's centre a station is preferred at among equals, m."""
+
+MOST_TRIED = 40
+"""How many of the best candidates :func:`choose_station` asks for data stops before it
+gives up on a camera (each asks the planner of stops once)."""
 
 SEES_EQUALLY = 0.02
 """Two candidates whose visible fractions differ by less than this see equally well."""
@@ -79,6 +84,7 @@ def choose_station(
     need: float,
     grid: float = GRID,
     avoid: NDArray[np.float64] | None = None,
+    gives_data: Callable[[NDArray[np.float64]], bool] | None = None,
 ) -> Station:
     """The station of one camera (see the module).
 
@@ -93,9 +99,12 @@ def choose_station(
         grid: candidates' spacing, m.
         avoid: (K, 2) places in W no station may stand within :data:`AVOID_RADIUS` of
             (where an earlier plan's station or travel failed); default none.
+        gives_data: whether a child finds its data stops in the camera's view with the
+            parent at a (2,) station in W (the campaign's own planner of stops); a
+            candidate it refuses is passed over for the next best (default: every one).
 
     Raises:
-        NoStationError: no candidate reaches ``need``.
+        NoStationError: no candidate reaches ``need`` (and gives data).
     """
     view = floor_view(camera, space.floor_z, max_range=60.0)
     if len(view) == 0:
@@ -105,19 +114,30 @@ def choose_station(
     if avoid is not None and len(avoid) and len(candidates):
         near = np.linalg.norm(candidates[:, None, :] - np.asarray(avoid)[None, :, :], axis=2)
         candidates = candidates[np.all(near >= AVOID_RADIUS, axis=1)]
-    best: Station | None = None
-    best_key = (-1.0, 0.0)
     fractions = stations_visibility(
         space, camera, candidates, instrument_z, prism_height, instrument_range
     )
-    for xy, frac in zip(candidates, fractions.tolist(), strict=True):
-        key = (
-            round(frac / SEES_EQUALLY),
-            -abs(float(np.linalg.norm(xy - centre)) - PREFERRED),
+    keys = [
+        (round(frac / SEES_EQUALLY), -abs(float(np.linalg.norm(xy - centre)) - PREFERRED))
+        for xy, frac in zip(candidates, fractions.tolist(), strict=True)
+    ]
+    order = sorted(range(len(keys)), key=keys.__getitem__, reverse=True)
+    first = order[0] if order else None
+    best = (
+        None
+        if first is None
+        else Station(camera_name, candidates[first], float(fractions[first]), centre)
+    )
+    if best is not None and best.visible >= need and gives_data is not None:
+        tried = [k for k in order[:MOST_TRIED] if fractions[k] >= need]
+        for k in tried:
+            if gives_data(candidates[k]):
+                return Station(camera_name, candidates[k], float(fractions[k]), centre)
+        raise NoStationError(
+            f"no station that sees {100 * need:.0f} % of camera {camera_name!r}'s floor view "
+            "leaves a child a place in it that shows an LED to the camera and its prisms to "
+            f"the total station ({len(tried)} tried, the best at {np.round(best.xy, 2).tolist()})"
         )
-        if key > best_key:
-            best_key = key
-            best = Station(camera_name, xy, frac, centre)
     if best is None or best.visible < need:
         found = (
             "no reachable place near it"
