@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 from rich.console import Console
 from rich.table import Table
 from shapely.geometry import Point
@@ -180,9 +181,16 @@ def _counted(
     else:
         region = max(pieces, key=lambda p: p.area)
     out = set()
+    shapely.prepare(floor.free)
     for cam in cameras:
         view = floor_view(validate_model(CameraConfig, cam).tsai(), 0.0, max_range=60.0)
-        if any(region.covers(Point(*p[:2])) for p in view):
+        # The floor the camera itself sees: a ROS map's blocked cells reach the ceiling, so
+        # a sight line to the floor is clear where it stays over free floor.
+        lines = (
+            shapely.linestrings([[cam["position"][:2], p[:2]] for p in view]) if len(view) else []
+        )
+        seen = [p for p, line in zip(view, lines, strict=True) if floor.free.covers(line)]
+        if any(region.covers(Point(*p[:2])) for p in seen):
             out.add(str(cam["name"]))
     return out
 

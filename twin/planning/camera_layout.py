@@ -11,7 +11,9 @@ The rule (:func:`place_cameras`):
    ``seed``; the spacing is widened or narrowed until there are ``least`` to ``most``
    cameras (as far as the floor allows);
 3. each camera ``height`` m over its point, looking ``tilt_deg`` down along the axis there
-   (the axis's main direction within 1.5 m), towards the side with the longer free floor.
+   (the axis's main direction within 1.5 m), towards the side with the longer free floor;
+   where neither side runs 3 m free (a stub of the axis at a junction or in an alcove),
+   along the longest free line instead, never at a wall a metre away.
 
 Nothing is chosen by hand, so no hard spot of a map (a narrow passage, a pocket cut off from
 the rest) is left out. ``python -m twin.planning.camera_layout MAP --out cameras.yaml``
@@ -128,9 +130,15 @@ def _spread(points: NDArray, order: NDArray, spacing: float) -> list[int]:
     return kept
 
 
+OPEN_VIEW = 3.0
+"""A camera looks along the axis where the floor runs this far free that way at least, m;
+else along the longest free line of 16 directions."""
+
+
 def _direction(points: NDArray, at: NDArray, free: BaseGeometry) -> NDArray[np.float64]:
     """The axis's main direction near ``at`` (its points within 1.5 m), pointing to the side
-    with the longer free floor, unit (2,)."""
+    with the longer free floor (where that runs :data:`OPEN_VIEW` m free; else the direction
+    of the longest free line), unit (2,)."""
     near = points[np.sum((points - at) ** 2, axis=1) <= 1.5**2] - at
     if near.shape[0] < 2:
         axis = np.array([1.0, 0.0])
@@ -138,7 +146,13 @@ def _direction(points: NDArray, at: NDArray, free: BaseGeometry) -> NDArray[np.f
         _, vecs = np.linalg.eigh(near.T @ near)
         axis = vecs[:, -1]
     reach = [_free_length(free, at, s * axis) for s in (1.0, -1.0)]
-    return axis if reach[0] >= reach[1] else -axis
+    if max(reach) >= OPEN_VIEW:
+        return axis if reach[0] >= reach[1] else -axis
+    # A stub of the axis (a junction, an alcove): no installer aims a camera at the wall a
+    # metre away, so the camera looks the way of the longest free floor instead.
+    turns = np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False)
+    ways = np.column_stack([np.cos(turns), np.sin(turns)])
+    return ways[int(np.argmax([_free_length(free, at, w) for w in ways]))]
 
 
 def _free_length(free: BaseGeometry, start: NDArray, step: NDArray, most: float = 20.0) -> float:

@@ -68,3 +68,21 @@ def test_a_floor_no_robot_fits_on_is_refused():
         place_cameras(floor_map(box(0.0, 0.0, 1.0, 1.0), source="closet"))
     with pytest.raises(ValueError, match="least <= most"):
         place_cameras(floor_map(box(0.0, 0.0, 9.0, 9.0)), least=5, most=2)
+
+
+def test_a_camera_on_a_stub_of_the_axis_looks_down_the_floor_not_at_the_wall():
+    # The axis runs across a corridor 1.6 m wide (a stub at a junction): along it, the
+    # walls stand 0.8 m away; the camera looks along the corridor's 10 m instead.
+    from shapely.geometry import box
+
+    from twin.planning.camera_layout import OPEN_VIEW, _direction
+
+    free = box(-0.8, -10.0, 0.8, 10.0)
+    stub = np.array([[-0.5, 0.0], [0.0, 0.0], [0.5, 0.0]])
+    d = _direction(stub, np.zeros(2), free)
+    assert abs(d[0]) < 1e-9
+    assert abs(abs(d[1]) - 1.0) < 1e-9
+    # Where the axis itself runs free far enough, the camera looks along it.
+    long = box(-10.0, -0.8, 10.0, 0.8)
+    along = _direction(stub, np.array([-OPEN_VIEW, 0.0]), long)
+    np.testing.assert_allclose(along, [1.0, 0.0], atol=1e-9)
