@@ -275,23 +275,26 @@ def run(args: argparse.Namespace) -> int:
         if "speckle =" in note:
             console.print(f"map: {escape(note)}")
     console.print(f"scenario: {written.path}; figure: {written.figure}")
+    left_out = (
+        (
+            plan.unreachable,
+            "the robots cannot reach these cameras' floor views from the start (left out of "
+            "the plan; the map's frame, m)",
+            " ",
+        ),
+        (
+            plan.hidden,
+            "no station sees enough of these cameras' floor views (left out of the plan)",
+            ": ",
+        ),
+    )
     code = 0
-    if plan.unreachable:
-        console.print(
-            "[yellow]warning:[/yellow] the robots cannot reach these cameras' floor views from "
-            "the start (left out of the plan; the map's frame, m):"
-        )
-        for cam, why in plan.unreachable.items():
-            console.print(f"  {cam} {escape(why)}")
-        code = 1
-    if plan.hidden:
-        console.print(
-            "[yellow]warning:[/yellow] no station sees enough of these cameras' floor views "
-            "(left out of the plan):"
-        )
-        for cam, why in plan.hidden.items():
-            console.print(f"  {cam}: {escape(why)}")
-        code = 1
+    for cameras, title, sep in left_out:
+        if cameras:
+            console.print(f"[yellow]warning:[/yellow] {title}:")
+            for cam, why in cameras.items():
+                console.print(f"  {cam}{sep}{escape(why)}")
+            code = 1
     for cam, seen in plan.partial.items():
         console.print(
             f"note: camera {cam!r}: its station sees {100 * seen:.0f} % of its floor view "
