@@ -8,8 +8,9 @@ map and to plan (stations, tour, route, boxes); the time of the whole ``twin sit
 scenario and figure written; the office floors only, unless ``--run-all``) and the repairs
 it tried; the boxes the blocked floor is laid as (0.1 m grid), the route's length, the
 cameras calibrated by the written plan's run, and the process's peak memory (each floor is
-planned in a process of its own: ``ru_maxrss``). The ratio is the planning time per camera against the first floor's,
-measured in the same run (the machine is shared: ratios travel, seconds less so).
+planned in a process of its own: ``ru_maxrss``). The ratio is the planning time per camera
+against the first floor's, measured in the same run (the machine is shared: ratios travel,
+seconds less so).
 
 Target: the 60 x 60 m office floor through ``twin site`` (its run and repairs included) in
 under 60 s and 2 GB.
