@@ -312,9 +312,10 @@ def _unknown_code(em) -> None:
     ids=["robot-unplugged", "instrument-silent", "unknown-return-code"],
 )
 def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
-    emulation_without_reference, tmp_path, inject, expected, calibrated
+    emulation, tmp_path, inject, expected, calibrated
 ):
-    emulation, smoke = emulation_without_reference
+    # The smoke scenario as it is: the fault comes during its reference data set.
+    smoke = SMOKE
     rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
     injected: list[float] = []
 
