@@ -9,7 +9,7 @@ import shapely
 
 from twin.planning import floor_shapes as fs
 from twin.planning.route import TOLERANCE, RouteGraph
-from twin.planning.site import _straighten
+from twin.planning.site_route import straighten
 
 
 def _floor(width: float, turn_deg: float, clearance: float):
@@ -38,7 +38,7 @@ def test_a_corner_is_turned_in_few_pieces_on_the_floor(width, turn_deg):
     reachable, grown = _floor(width, turn_deg, clearance)
     exact = RouteGraph(reachable).path(*_ends(width, turn_deg))
     assert len(exact) > 10  # the arcs' pieces
-    route = _straighten(exact, grown)
+    route = straighten(exact, grown)
     assert len(route) <= 6
     np.testing.assert_array_equal(route[0], exact[0])
     np.testing.assert_array_equal(route[-1], exact[-1])
@@ -51,7 +51,7 @@ def test_a_corner_is_turned_in_few_pieces_on_the_floor(width, turn_deg):
 def test_a_short_path_is_kept():
     _, grown = _floor(2.4, 90.0, 0.95)
     path = np.array([[1.0, 0.0], [11.0, 0.0], [12.0, 9.0]])
-    np.testing.assert_array_equal(_straighten(path, grown), path)
+    np.testing.assert_array_equal(straighten(path, grown), path)
 
 
 def test_a_bend_through_a_doorway_stays_in_the_door():
@@ -62,6 +62,6 @@ def test_a_bend_through_a_doorway_stays_in_the_door():
     grown = shapely.buffer(reachable, TOLERANCE)
     shapely.prepare(grown)
     exact = RouteGraph(reachable).path((1.0, 0.0), (9.8, 2.2))
-    route = _straighten(exact, grown)
+    route = straighten(exact, grown)
     assert len(route) <= 4 < len(exact)
     assert grown.covers(shapely.LineString(route))
