@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 
-.PHONY: run test lint format bench clean gl-libs
+.PHONY: run test lint format bench docs clean gl-libs
 
 # Headless rendering needs Mesa's EGL (or OSMesa). When neither library is installed they
 # are installed with apt-get where that is possible (as root), else the command is shown.
@@ -46,6 +46,11 @@ lint: $(VENV)/.stamp-dev
 format: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff format .
 	$(VENV)/bin/ruff check --fix .
+
+# The documentation site (docs/, mkdocs.yml) into out/site/; a warning (a broken link, a
+# missing page or image) fails the build.
+docs: $(VENV)/.stamp-dev
+	$(VENV)/bin/mkdocs build --strict
 
 bench: $(VENV)/.stamp-dev
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
