@@ -4,9 +4,10 @@ Two kinds of command are found in the Markdown: whole lines of fenced code block
 with ``twin`` (a synopsis such as ``twin run SCENARIO [--seed N]`` continues on the indented
 lines below it), and inline code spans in the prose that start with ``twin COMMAND``. A line
 of a code block that names concrete values is parsed by the command line's own parser, as
-the shell would hand it over; a synopsis or an inline span, which hold placeholders and
-fragments, has its command, each ``--option`` and each value of an option with choices
-(``--fidelity render|geometric``) looked up in the parser.
+the shell would hand it over; every command, a synopsis or an inline span (which hold
+placeholders and fragments) as well, has its command, each ``--option`` (spelt whole) and
+each value of an option with choices (``--fidelity render|geometric``) looked up in the
+parser.
 """
 
 from __future__ import annotations
@@ -120,7 +121,7 @@ def problems(command: DocCommand, parser: argparse.ArgumentParser) -> list[str]:
                 parser.parse_args(tokens[1:])
         except SystemExit:
             return [err.getvalue().strip().splitlines()[-1]]
-        return []
+    # argparse takes a prefix of an option for the option: the pages must spell it whole.
     options = subs[tokens[1]]._option_string_actions
     found = []
     for at, token in enumerate(tokens[2:], start=2):

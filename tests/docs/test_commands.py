@@ -40,6 +40,7 @@ def test_documented_command_runs_as_written(command: DocCommand, parser):
         ("twin run scenarios/smoke.toml --no-such-option", False, "--no-such-option"),
         ("twin run scenarios/smoke.toml --fidelity batch", False, "'batch'"),
         ("twin runs scenarios/smoke.toml", False, "twin runs"),
+        ("twin run scenarios/smoke.toml --over", False, "--over"),
         ("twin run SCENARIO [--seed N] [--no-such-option]", True, "--no-such-option"),
         ("twin run SCENARIO [--strategy planned|greedy]", True, "'greedy'"),
         ("twin replay LOG --adjust shared|per_camera", True, "'per_camera'"),
