@@ -78,3 +78,16 @@ def test_the_readme_stays_a_front_door():
         f"README.md has {lines} lines; keep it a ten-minute tour (at most "
         f"{README_MAX_LINES}) and put reference text in a page of docs/"
     )
+
+
+def test_the_pages_the_code_names_exist():
+    """A help text or docstring that sends the reader to a page names one that exists."""
+    named = {
+        (path.relative_to(ROOT).as_posix(), page)
+        for package in ("twin", "calib")
+        for path in (ROOT / package).rglob("*.py")
+        for page in re.findall(r"\bdocs/[\w-]+\.md\b", path.read_text(encoding="utf-8"))
+    }
+    assert ("twin/cli/montecarlo.py", "docs/montecarlo.md") in named
+    missing = sorted((where, page) for where, page in named if not (ROOT / page).is_file())
+    assert missing == [], f"pages named in the code that docs/ lacks: {missing}"

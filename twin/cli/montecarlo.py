@@ -57,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("batch", "geometric", "render"),
         default="batch",
         help="batch (default): the campaign's plan for many trials at once, as arrays "
-        "(see the README for what it leaves out); geometric: each trial a campaign with "
+        "(see docs/montecarlo.md for what it leaves out); geometric: each trial a campaign with "
         "robots placed with a stopping error, LEDs projected; render: robots driven in "
         "MuJoCo, rendered images",
     )

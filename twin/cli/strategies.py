@@ -67,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="campaign",
         help=(
             "how the moves are played: 'campaign' (the campaign itself, default) or "
-            "'stands' (a table of the site: fast, see the README)"
+            "'stands' (a table of the site: fast, see docs/environment.md)"
         ),
     )
     p.add_argument(
