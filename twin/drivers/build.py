@@ -172,9 +172,9 @@ def check_drivers(rig_file: RigFile) -> None:
             installs it).
     """
     if any(c.driver == "genicam" for c in rig_file.cameras):
-        from twin.drivers.camera import _harvesters
+        from twin.drivers.genicam import harvester_class
 
-        _harvesters()
+        harvester_class()
 
 
 def close_all(devices: list[Closing]) -> None:
@@ -248,7 +248,7 @@ def open_leds(connection: Any, device: RobotDevice) -> MarkerLeds:
 def open_camera(device: CameraDevice, clock: WallClock) -> Camera:
     """The camera of ``device`` (OpenCV or GenICam)."""
     if device.driver == "genicam":
-        from twin.drivers.camera import GenICamCamera
+        from twin.drivers.genicam import GenICamCamera
 
         return GenICamCamera(
             str(device.source),
