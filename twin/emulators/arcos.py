@@ -24,24 +24,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from twin.closing import Closing
+from twin.drivers.arcos.platforms import platform
 from twin.drivers.arcos.protocol import (
-    FLAG_ESTOP,
-    FLAG_MOTORS,
-    STALL_LEFT,
-    STALL_RIGHT,
     SYNC0,
     SYNC1,
     SYNC2,
     Command,
     PacketReader,
     ProtocolError,
-    Sip,
-    encode_sip,
     frame,
     parse_command,
-    platform,
     sync2_reply,
 )
+from twin.drivers.arcos.sip import FLAG_ESTOP, FLAG_MOTORS, STALL_LEFT, STALL_RIGHT, Sip, encode_sip
 from twin.drivers.clock import WallClock
 from twin.emulators.links import Link, TcpLink
 from twin.emulators.pioneer_body import PioneerBody

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from twin.drivers.arcos import ArcosBase, Command
 from twin.drivers.arcos.base import MIN_TURN_RATE
 from twin.drivers.arcos.connection import ArcosPose
-from twin.drivers.arcos.protocol import ANGLE_UNIT, PLATFORMS
+from twin.drivers.arcos.platforms import ANGLE_UNIT, PLATFORMS
 
 P = PLATFORMS["p3dx"]
 U = ANGLE_UNIT

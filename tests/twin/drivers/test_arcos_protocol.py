@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from twin.drivers.arcos.platforms import PLATFORMS, platform
 from twin.drivers.arcos.protocol import (
-    PLATFORMS,
     SYNC0,
     SYNC1,
     SYNC2,
@@ -18,19 +18,15 @@ from twin.drivers.arcos.protocol import (
     Command,
     PacketReader,
     ProtocolError,
-    Sip,
     checksum,
     command,
-    decode_sip,
-    encode_sip,
     frame,
     parse_command,
     parse_sync2_reply,
-    platform,
     sync2_reply,
     unframe,
-    unroll_position,
 )
+from twin.drivers.arcos.sip import Sip, decode_sip, encode_sip, unroll_position
 
 # -- packets by hand ---------------------------------------------------------------------------
 # The first three and ENABLE 1 are printed in the Pioneer 3 Operations Manual (ARCOS chapter,

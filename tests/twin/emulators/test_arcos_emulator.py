@@ -15,15 +15,8 @@ import numpy as np
 import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
-from twin.drivers.arcos.protocol import (
-    Command,
-    PacketReader,
-    Sip,
-    command,
-    decode_sip,
-    is_sip,
-    parse_sync2_reply,
-)
+from twin.drivers.arcos.protocol import Command, PacketReader, command, parse_sync2_reply
+from twin.drivers.arcos.sip import Sip, decode_sip, is_sip
 from twin.drivers.clock import WallClock
 from twin.emulators.arcos import ArcosFaults, PioneerEmulator
 from twin.emulators.links import TcpLink

@@ -1,11 +1,14 @@
-"""Pioneer 3 robots over ARCOS: the protocol (:mod:`.protocol`), one client session
+"""Pioneer 3 robots over ARCOS: the packets (:mod:`.protocol`), the robot's reports
+(:mod:`.sip`), the platforms' units (:mod:`.platforms`), one client session
 (:mod:`.connection`), the base (:mod:`.base`) and a child's LEDs on the digital outputs
 (:mod:`.leds`)."""
 
 from twin.drivers.arcos.base import ArcosBase
 from twin.drivers.arcos.connection import ArcosPose, PioneerConnection
 from twin.drivers.arcos.leds import ArcosLeds
-from twin.drivers.arcos.protocol import PLATFORMS, Command, PlatformParams, Sip
+from twin.drivers.arcos.platforms import PLATFORMS, PlatformParams
+from twin.drivers.arcos.protocol import Command
+from twin.drivers.arcos.sip import Sip
 
 __all__ = [
     "PLATFORMS",

@@ -34,21 +34,17 @@ import serial
 from numpy.typing import NDArray
 
 from twin.closing import Closing
+from twin.drivers.arcos.platforms import PlatformParams, platform
 from twin.drivers.arcos.protocol import (
     SYNC0,
     SYNC1,
     SYNC2,
     Command,
     PacketReader,
-    PlatformParams,
-    Sip,
-    decode_sip,
-    is_sip,
     parse_sync2_reply,
-    platform,
-    unroll_position,
 )
 from twin.drivers.arcos.protocol import command as command_packet
+from twin.drivers.arcos.sip import Sip, decode_sip, is_sip, unroll_position
 from twin.drivers.clock import WallClock
 from twin.hal.errors import DeviceLostError
 
