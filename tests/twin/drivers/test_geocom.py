@@ -28,7 +28,8 @@ from twin.drivers.geocom_codes import (
     polar_from_geocom,
     tilt_from_inclination,
 )
-from twin.emulators.geocom import Fault, GeoComEmulator
+from twin.emulators.geocom import GeoComEmulator
+from twin.emulators.geocom_faults import Fault
 from twin.emulators.links import PtyLink, TcpLink
 from twin.hal.devices import DOCUMENTED_ERRORS
 from twin.hal.errors import DeviceLostError

@@ -24,7 +24,7 @@ import pytest
 from twin.drivers.build import build_rig
 from twin.drivers.rig_file import load_rig_file
 from twin.emulators.emulation import start_emulation
-from twin.emulators.geocom import Fault
+from twin.emulators.geocom_faults import Fault
 from twin.hal.conformance import check_rig
 from twin.hardware_run import run_on_rig
 from twin.montecarlo.prediction import predictions_from_log

@@ -18,16 +18,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import ArrayLike
 
-from twin.emulators.geocom import (
-    GARBAGE,
-    Fault,
-    GeoComEmulator,
-    GeoComFaults,
-    Request,
-    RequestError,
-    format_reply,
-    parse_request,
-)
+from twin.emulators.geocom import GeoComEmulator
+from twin.emulators.geocom_faults import GARBAGE, Fault, GeoComFaults
+from twin.emulators.geocom_requests import Request, RequestError, format_reply, parse_request
 from twin.emulators.links import Link, PtyLink, TcpLink
 from twin.hal.devices import TotalStation
 from twin.hal.readings import TiltReading, TotalStationMeasurement
