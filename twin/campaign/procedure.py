@@ -57,10 +57,10 @@ from twin.campaign.strategy import (
     Visit,
 )
 from twin.campaign.travel import CampaignAborted, NoProgress, Travel
-from twin.hal.conformance import check_rig_structure
 from twin.hal.errors import DeviceLostError
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
+from twin.hal.structure import check_rig_structure
 from twin.instruments.errors import TiltOutOfRangeError
 from twin.instruments.total_station import TotalStationSpec
 from twin.localization.pose import ParentPose

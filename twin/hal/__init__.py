@@ -11,6 +11,8 @@
 - :mod:`.wrappers`: devices that pass every call to another (:func:`wrapped`), to change
   what one device does: record it, inject a fault.
 - :mod:`.recording`: :func:`recorded`, a rig whose every reading goes to a recorder.
+- :mod:`.structure`: :func:`check_rig_structure`, whether a rig has what the campaign
+  needs, without calling a device.
 - :mod:`.conformance`: :func:`check_rig`, whether a rig keeps the interface's promises
   (every backend's tests run it).
 
@@ -18,7 +20,7 @@ No backend is imported here: the MuJoCo twin (:mod:`twin.sim.rig`) implements th
 classes, and real drivers will.
 """
 
-from twin.hal.conformance import RigCheckError, check_rig, check_rig_structure
+from twin.hal.conformance import check_rig
 from twin.hal.devices import (
     DOCUMENTED_ERRORS,
     Camera,
@@ -43,6 +45,7 @@ from twin.hal.readings import (
 )
 from twin.hal.recording import Recorder, recorded
 from twin.hal.rig import Rig
+from twin.hal.structure import RigCheckError, check_rig_structure
 from twin.hal.wrappers import wrapped
 
 __all__ = [

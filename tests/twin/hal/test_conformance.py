@@ -12,8 +12,9 @@ import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.hal import LedObservation, Rig
-from twin.hal.conformance import RigCheckError, check_rig, check_rig_structure
+from twin.hal.conformance import check_rig
 from twin.hal.readings import TotalStationMeasurement
+from twin.hal.structure import RigCheckError, check_rig_structure
 from twin.hal.wrappers import (
     ClockWrapper,
     LedSensorWrapper,
