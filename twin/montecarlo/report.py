@@ -12,7 +12,7 @@ from twin.montecarlo.paper_targets import LOCAL_BAND, SPREAD, WORLD_BAND
 from twin.montecarlo.sources import SOURCES, UNPREDICTED
 from twin.montecarlo.summary import AGREEMENT
 from twin.outputs import write_text_atomic
-from twin.report.markdown import fmt, table
+from twin.report.formatting import fmt, table
 from twin.report.reading import visit_name
 
 
