@@ -18,6 +18,7 @@ from typing import Any
 from twin.campaign import Progress
 from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
+from twin.campaign.strategy import Strategy
 from twin.campaign_run import run_campaign
 from twin.check_run import run_check
 from twin.drivers.build import build_rig, check_drivers
@@ -41,7 +42,7 @@ def run_on_rig(
     *,
     progress: Callable[[Progress], None] | None = None,
     report: bool = True,
-    strategy: str | None = None,
+    strategy: Strategy | str | None = None,
     overwrite: bool = False,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` on the devices of ``rig_file``.
@@ -89,7 +90,7 @@ def check_on_rig(
     false_alarm_rate: float = DEFAULT_FALSE_ALARM_RATE,
     min_pixel_sigma: float = MIN_PIXEL_SIGMA,
     progress: Callable[[Progress], None] | None = None,
-    strategy: str | None = None,
+    strategy: Strategy | str | None = None,
     overwrite: bool = False,
 ) -> dict[str, Any]:
     """Check on the devices of ``rig_file`` whether the cameras a run calibrated

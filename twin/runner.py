@@ -27,6 +27,7 @@ import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo l
 from twin.campaign import Progress
 from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
+from twin.campaign.strategy import Strategy
 from twin.campaign_run import RUN_OUTPUTS, run_campaign, write_cameras
 from twin.check_run import run_check
 from twin.hal.recording import Recorder
@@ -50,7 +51,7 @@ def run_scenario(
     progress: Callable[[Progress], None] | None = None,
     report: bool = True,
     advertised_noise: Noise | None = None,
-    strategy: str | None = None,
+    strategy: Strategy | str | None = None,
     adapt_rig: Callable[[SimRig], Rig] | None = None,
     overwrite: bool = False,
 ) -> dict[str, Any]:
@@ -70,8 +71,9 @@ def run_scenario(
         advertised_noise: the noise the simulated instrument reports to the campaign
             (default: the noise it simulates); an error budget simulates one source alone
             while the campaign weighs its data as in the real run.
-        strategy: the campaign's strategy by name (default: the scenario's
-            ``campaign.strategy``); see :data:`twin.campaign.STRATEGIES`.
+        strategy: the campaign's strategy, built (one instance serves one run) or by name
+            (default: the scenario's ``campaign.strategy``); see
+            :data:`twin.campaign.STRATEGIES`.
         adapt_rig: given the simulated rig (its devices and its world), returns the rig the
             campaign runs with: the devices wrapped to inject a fault, say
             (:mod:`twin.hal.wrappers`). The recorder wraps what it returns.
@@ -126,7 +128,7 @@ def check_scenario(
     false_alarm_rate: float = DEFAULT_FALSE_ALARM_RATE,
     min_pixel_sigma: float = MIN_PIXEL_SIGMA,
     progress: Callable[[Progress], None] | None = None,
-    strategy: str | None = None,
+    strategy: Strategy | str | None = None,
     overwrite: bool = False,
 ) -> dict[str, Any]:
     """Check in the twin whether the cameras a run calibrated (``cameras_dir``) are still

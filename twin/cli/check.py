@@ -19,6 +19,7 @@ from twin.campaign.check import (
     MIN_PIXEL_SIGMA,
     MIN_STOPS,
 )
+from twin.campaign.strategy import Strategy
 from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
@@ -132,11 +133,8 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
-    try:
-        strategy = strategy_for(sc, args.strategy).name
-    except ValueError as exc:
-        console.print(f"[red]error:[/red] {escape(str(exc))}")
-        return 2
+    # Built once here: the name is known (argparse's choices, the scenario's checks).
+    strategy = strategy_for(sc, args.strategy)
     if args.rig is not None:
         twin_only = (("--fidelity", args.fidelity), ("--seed", args.seed))
         refused = [f for f, given in twin_only if given is not None]
@@ -180,7 +178,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check(
-    args: argparse.Namespace, sc: Any, out: Path, strategy: str, display: Any, console: Console
+    args: argparse.Namespace,
+    sc: Any,
+    out: Path,
+    strategy: Strategy,
+    display: Any,
+    console: Console,
 ) -> dict[str, Any] | None:
     """The check in the twin or on the rig file's devices; None (the error shown) for a
     bad rig file or a device that cannot be opened."""

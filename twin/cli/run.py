@@ -12,6 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from twin.campaign.strategies import strategy_for
+from twin.campaign.strategy import Strategy
 from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
@@ -81,11 +82,8 @@ def run(args: argparse.Namespace) -> int:
     sc = load_or_report(args.scenario, console)
     if sc is None:
         return 2
-    try:
-        strategy = strategy_for(sc, args.strategy).name
-    except ValueError as exc:
-        console.print(f"[red]error:[/red] {exc}", highlight=False)
-        return 2
+    # Built once here: the name is known (argparse's choices, the scenario's checks).
+    strategy = strategy_for(sc, args.strategy)
     if args.rig is not None:
         refused = [
             f
@@ -100,7 +98,9 @@ def run(args: argparse.Namespace) -> int:
     where = "rig" if args.rig is not None else fidelity
     out = args.out or Path("out") / f"{sc.name}-{where}"
     how = f"on the devices of {args.rig}" if args.rig else f"at the {fidelity} fidelity"
-    console.print(f"running [bold]{sc.name}[/bold] {how} with the {strategy} strategy into {out}")
+    console.print(
+        f"running [bold]{sc.name}[/bold] {how} with the {strategy.name} strategy into {out}"
+    )
     try:
         with Live(console=console, refresh_per_second=4, transient=True) as live:
             if args.rig is not None:
@@ -151,7 +151,7 @@ def _run_on_rig(
     args: argparse.Namespace,
     sc: object,
     out: Path,
-    strategy: str,
+    strategy: Strategy,
     display: LiveStatus,
     console: Console,
 ) -> dict | None:

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from twin.batch.plan import record_plan
-from twin.campaign.strategies import strategy_for
+from twin.campaign.strategies import strategy_name
 from twin.montecarlo.batch_trials import (
     BATCH_OMITS,
     check_batch_scenario,
@@ -229,8 +229,8 @@ def run_montecarlo(
     configs = configurations(budget)
     check_trials(scenario, trials, configs)
     seed = scenario.seed if master_seed is None else check_seed(master_seed)
-    strategy_name = strategy_named_in(scenario, strategy)
-    settings = _settings(scenario, fidelity, strategy_name, seed, configs)
+    chosen = strategy_name(scenario, strategy)
+    settings = _settings(scenario, fidelity, chosen, seed, configs)
     if fidelity == "batch":
         check_batch_scenario(scenario)
         settings["batch_omits"] = list(BATCH_OMITS)
@@ -239,7 +239,7 @@ def run_montecarlo(
         # Checked before anything starts or is written.
         check_folder(Path(out_dir), "montecarlo", [*OUTPUTS, MANIFEST], resume=True)
         _check_resume(Path(out_dir) / SETTINGS, settings, trials)
-    plan = record_plan(scenario, strategy_name) if fidelity == "batch" else None
+    plan = record_plan(scenario, chosen) if fidelity == "batch" else None
     runner = make_engine(engine, workers, ray_address)
     try:
         folder = claim_folder(
@@ -253,7 +253,7 @@ def run_montecarlo(
         total = trials * len(configs)
         with TrialTable(table_path, rows_per_trial) as table:
             done0 = sum(1 for c, i in table.done if c in configs and i < trials)
-            todo = trial_specs(scenario, configs, trials, seed, fidelity, strategy_name, table.done)
+            todo = trial_specs(scenario, configs, trials, seed, fidelity, chosen, table.done)
             t0 = time.perf_counter()
             if plan is not None:
                 size = chunk_size or default_chunk_size(total - done0, workers)
@@ -281,15 +281,6 @@ def run_montecarlo(
     write_outputs(rows, settings, out)
     folder.finished(trials=trials)
     return rows
-
-
-def strategy_named_in(scenario: Scenario, name: str | None) -> str:
-    """The strategy's name a run uses: ``name``, else the scenario's; checked to exist.
-
-    Raises:
-        ValueError: no strategy has that name.
-    """
-    return strategy_for(scenario, name).name
 
 
 def _finite_or_null(value: Any) -> Any:

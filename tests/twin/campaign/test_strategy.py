@@ -5,6 +5,7 @@ the campaign's own recoveries are events, not failures."""
 from __future__ import annotations
 
 import math
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Campaign, PaperStrategy, strategy_named
-from twin.campaign.strategies import strategy_for
+from twin.campaign.strategies import STRATEGIES, strategy_for, strategy_name
 from twin.campaign.strategy import (
     DataStops,
     NextLeg,
@@ -29,6 +30,7 @@ from twin.hal.wrappers import MobileBaseWrapper, TotalStationWrapper, wrapped
 from twin.instruments.errors import NoPrismInConeError
 from twin.runner import run_scenario
 from twin.scenario import load_scenario
+from twin.scenario.schema import StrategyName
 from twin.sim.rig import build_sim_rig
 from twin.sim.world import build_world
 
@@ -194,6 +196,22 @@ def test_strategies_are_known_by_name():
         strategy_for(bad)
     with pytest.raises(ValueError, match=r"--strategy: unknown strategy 'bolder'"):
         strategy_for(sc, "bolder")
+
+
+def test_the_registry_makes_every_name_a_scenario_accepts():
+    assert set(STRATEGIES) == set(typing.get_args(StrategyName))
+    for name in STRATEGIES:
+        assert strategy_named(name).name == name
+
+
+def test_a_built_strategy_is_used_as_it_is_and_a_name_is_checked_without_building():
+    sc = load_scenario(SMOKE)
+    built = PaperStrategy()
+    assert strategy_for(sc, built) is built
+    assert strategy_name(sc) == sc.campaign.strategy
+    assert strategy_name(sc, "paper") == "paper"
+    with pytest.raises(ValueError, match=r"--strategy: unknown strategy 'bold'; strategies: paper"):
+        strategy_name(sc, "bold")
 
 
 def test_the_questions_ask_the_strategy():

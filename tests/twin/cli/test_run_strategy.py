@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from twin.campaign import PaperStrategy
+from twin.campaign.strategies import STRATEGIES
 from twin.cli import main
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -31,15 +33,25 @@ def test_an_unknown_strategy_in_the_scenario_is_refused(command, tmp_path, capsy
     scenario.write_text(text)
     extra = ["--trials", "1"] if command == "montecarlo" else []
     assert main([command, str(scenario), *extra, "--out", str(tmp_path / "o")]) == 2
-    said = " ".join(capsys.readouterr().out.split())
-    assert f"campaign.strategy in {scenario}: unknown strategy 'bold'; strategies: paper" in said
+    said = " ".join(capsys.readouterr().err.split())
+    assert str(scenario) in said
+    assert "campaign.strategy: unknown strategy (got 'bold')" in said
+    assert "expected a strategy the campaign knows: paper, planned" in said
     assert not (tmp_path / "o").exists()
 
 
-def test_the_strategy_is_in_the_results(tmp_path):
+def test_the_strategy_is_built_once_and_is_in_the_results(tmp_path, monkeypatch):
+    built = []
+
+    def make() -> PaperStrategy:
+        built.append(PaperStrategy())
+        return built[-1]
+
+    monkeypatch.setitem(STRATEGIES, "paper", make)
     out = tmp_path / "run"
     args = ["run", str(SMOKE), "--fidelity", "geometric", "--strategy", "paper", "--no-report"]
     assert main([*args, "--out", str(out)]) == 0
+    assert len(built) == 1
     results = json.loads((out / "results.json").read_text())
     assert results["strategy"] == "paper"
 

@@ -371,3 +371,19 @@ def test_a_control_point_inside_an_obstacle_is_refused_naming_both(tmp_path):
     load_scenario(_with_control_point(tmp_path, "on_top", [6.5, -2.2, 0.7], 1.0))
     err = _error(_with_control_point(tmp_path, "under", [6.5, -2.2, 0.5], 1.0))
     assert "(below its top, z = 0.6 m)" in _only(err, "control_points[0].position").problem
+
+
+def test_an_unknown_strategy_is_refused_naming_the_known_ones(tmp_path):
+    path = variant(tmp_path, "bold", [("[route]", '[campaign]\nstrategy = "bold"\n\n[route]')])
+    err = _error(path)
+    issue = _only(err, "campaign.strategy")
+    assert issue.problem == "unknown strategy"
+    assert issue.value == "bold"
+    assert issue.expected == "a strategy the campaign knows: paper, planned"
+    assert "campaign.strategy: unknown strategy (got 'bold')" in str(err)
+
+
+@pytest.mark.parametrize("name", ["paper", "planned"])
+def test_each_known_strategy_is_accepted(tmp_path, name):
+    path = variant(tmp_path, name, [("[route]", f'[campaign]\nstrategy = "{name}"\n\n[route]')])
+    assert load_scenario(path).campaign.strategy == name

@@ -8,6 +8,7 @@ from twin.scenario.schema.campaign_settings import (
     CampaignSettings,
     ControlPoint,
     FormationSettings,
+    StrategyName,
 )
 from twin.scenario.schema.faults import Faults, MovedCamera
 from twin.scenario.schema.fleet import MarkerConfig, RobotConfig, Robots
@@ -55,6 +56,7 @@ __all__ = [
     "Space",
     "SpaceMap",
     "StoppingConfig",
+    "StrategyName",
     "TotalStationConfig",
     "Waypoints",
     "polyline_length",

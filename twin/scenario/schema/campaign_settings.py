@@ -3,12 +3,18 @@ points the parent measures on its way."""
 
 from __future__ import annotations
 
+import typing
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
+from pydantic_core import PydanticCustomError
 
 from twin.scenario.limits import MAX_CAMERAS, Point3
 from twin.scenario.schema.frozen import Frozen, Name
+
+StrategyName = Literal["planned", "paper"]
+"""The strategies the campaign knows by name; :data:`twin.campaign.strategies.STRATEGIES`
+makes each. A scenario that names another is refused as it loads."""
 
 
 class FormationSettings(Frozen):
@@ -49,7 +55,7 @@ class CampaignSettings(Frozen):
         strategy: the campaign's decisions (visits, legs, data stops) by name:
             ``planned`` (the default: the paper's visits and legs, each camera's data stops
             chosen for accuracy) or ``paper`` (the paper's, its stops too). ``twin run
-            --strategy`` overrides it.
+            --strategy`` overrides it. Any other name is refused as the scenario loads.
         child_creep_m: how far the campaign allows a standing child to move on each
             horizontal axis while the parent drives, m (standard deviation): CPS adds it to
             the children's positions before each of the parent's fixes, in its estimate,
@@ -77,10 +83,22 @@ class CampaignSettings(Frozen):
     led_sequence: Literal["binary", "one_at_a_time"] = "binary"
     lock_retries: Annotated[int, Field(ge=0, le=10)] = 3
     pixel_size_mm: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.015
-    strategy: Name = "planned"
+    strategy: StrategyName = "planned"
     child_creep_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0
     data_stops: Literal["all_leds", "accuracy"] = "all_leds"
     progress_slack: Annotated[float, Field(ge=1.0, le=100.0)] = 2.0
+
+    @field_validator("strategy", mode="before")
+    @classmethod
+    def _known_strategy(cls, v: object) -> object:
+        known = typing.get_args(StrategyName)
+        if isinstance(v, str) and v not in known:
+            raise PydanticCustomError(
+                "unknown_strategy",
+                "unknown strategy",
+                {"expected": f"a strategy the campaign knows: {', '.join(sorted(known))}"},
+            )
+        return v
 
 
 class ControlPoint(Frozen):
