@@ -47,9 +47,9 @@ from rich.table import Table
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.comparison import play_episode
-from twin.envs.planner import clear_memos
+from twin.envs.plan_memo import clear_memos
 from twin.envs.policies import policy_named
-from twin.envs.stands import _SITES, clear_sites
+from twin.envs.stand_site import _SITES, clear_sites
 from twin.montecarlo import run_montecarlo
 from twin.scenario import load_scenario
 

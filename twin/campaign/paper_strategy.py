@@ -210,6 +210,12 @@ class PaperStrategy(Strategy):
                 return found[1]
         return None
 
+    @property
+    def arc(self) -> float:
+        """The group's arc length on the route, m: where the parent stood at its last fix
+        after a leg (the start's before the first)."""
+        return self._arc
+
     def _follow_parent(self, parent_xy: NDArray[np.float64]) -> None:
         """After a leg the parent fixed its pose: the group is where it stands (``_arc``)."""
         if self._reached_s is not None:

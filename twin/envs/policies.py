@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from twin.envs.campaign_env import CpsCampaignEnv
-from twin.envs.planner import visit_stations
+from twin.envs.site_stations import visit_stations
 
 Actor = Callable[[dict[str, NDArray[np.float64]], dict[str, Any]], int]
 """Chooses a move from an observation and an info."""

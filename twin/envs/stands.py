@@ -4,21 +4,8 @@ planner, fast enough for random moves.
 The campaign planner (:mod:`twin.envs.planner`) runs the campaign itself for every new
 sequence of moves, which costs about a tenth of a second a decision: fine for policies
 that repeat their moves, far too slow for exploration. This planner plays the same moves
-on a site's table, computed once per site and process (:class:`StandSite`):
-
-- the **stands**: where the parent can stop on a travel. Between two stations' places on
-  the route, the route is cut into equal cells of at most the layout's shortest step
-  (``min(step_factors)`` times ``campaign.formation.step``); a leg of step factor ``f``
-  advances ``f / min(step_factors)`` cells (rounded), its last leg ends at the station.
-  Each calibration station and the start is a stand of its own, where the station is;
-- the **legs**: for a pair of stands, a direction, a formation and the sight margins, the
-  children's stops, found as the campaign finds them (:func:`twin.campaign.plan.
-  formation.formation`), with every robot's truth there from the site's world (floor tilt
-  included); found the first time a leg is asked for, then read back;
-- the **stations' data**: the plan's steps of each station's data set and calibration,
-  recorded once from the campaign itself, run noise-free with the paper's strategy
-  (:class:`twin.batch.plan.PlanSession`). Its start (the reference data) is the episode's
-  start.
+on a site's table, computed once per site and process
+(:class:`twin.envs.stand_site.StandSite`: its stands, its legs, its stations' data).
 
 What the table leaves out, which the campaign planner keeps (the price of its speed):
 
@@ -39,367 +26,29 @@ What the table leaves out, which the campaign planner keeps (the price of its sp
 
 from __future__ import annotations
 
-import itertools
 import math
-from collections import OrderedDict
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from twin.batch.plan import (
-    BatchPlan,
-    Calibrate,
-    DataSetDone,
-    Drive,
-    Fix,
-    Place,
-    PlanSession,
-    Point,
-    RobotTruth,
     Step,
 )
 from twin.campaign.paper_strategy import ARRIVED
-from twin.campaign.plan.formation import formation, sight_margins
-from twin.campaign.plan.route import RoutePath
-from twin.campaign.strategy import DataStops, Leg, NextLeg, NextVisit, Visit
-from twin.envs.moves import MoveLayout, formation_settings
-from twin.envs.planner import (
-    LEG,
-    START,
-    VISIT,
-    EpisodePlanner,
-    Station,
-    site_stations,
-    visit_mask,
-)
+from twin.campaign.plan.formation import sight_margins
+from twin.envs.episode import LEG, VISIT, EpisodePlanner, visit_mask
+from twin.envs.moves import MoveLayout
+from twin.envs.site_stations import START, Station
+from twin.envs.stand_site import Stand, StandSite, TableLeg, site_for
 from twin.scenario.schema import Scenario
 
-__all__ = ["STD_STEP", "StandPlanner", "StandSite", "clear_sites", "site_for"]
+__all__ = ["STD_STEP", "StandPlanner", "rounded_std"]
 
 STD_STEP = 0.025
 """The parent's horizontal standard deviation is rounded up to a multiple of this, m,
 before it sets a formation's sight margins (so that legs are found once and read back)."""
-
-SITES = 8
-"""Sites whose tables a process keeps (the least recently used is dropped)."""
-
-
-@dataclass(frozen=True)
-class Stand:
-    """Where the parent can stop.
-
-    Attributes:
-        index: its place in the site's list. xy: (2,) the instrument's ground point, m (W).
-        arc: its arc length on the route, m. station: the station there (its own stand),
-            or None on the route.
-    """
-
-    index: int
-    xy: NDArray[np.float64]
-    arc: float
-    station: str | None = None
-
-
-@dataclass(frozen=True)
-class _Leg:
-    """A leg found: its steps and each robot's stop (for the clock)."""
-
-    steps: tuple[Step, ...]
-    stops: dict[str, NDArray[np.float64]]
-
-
-@dataclass(frozen=True)
-class _Data:
-    """A station's data set and calibration as the paper's run took them.
-
-    Attributes:
-        steps: the plan's steps (numbered as the paper's visit). time: how long they
-            took, s.
-        stops: where each robot that moved stood at the end (2,), m.
-    """
-
-    steps: tuple[Step, ...]
-    time: float
-    stops: dict[str, NDArray[np.float64]]
-
-
-def _renumbered(step: Step, visit: int) -> Step:
-    """A data step with the visit number ``visit``."""
-    if isinstance(step, (Point, DataSetDone, Calibrate)):
-        return replace(step, visit=visit)
-    return step
-
-
-class StandSite:
-    """A site's table: its stands, its stations' data and the legs found so far (see the
-    module).
-
-    Args:
-        scenario: the site and its campaign settings.
-        layout: the moves.
-
-    Attributes:
-        plan: the campaign's plan before its first decision. start: the plan's steps of
-            the start (the reference data). start_time: how long the start took, s.
-        start_xy: each robot's (2,) place at the start, m (W). ready_xy: where the start's
-            reference data left it, m (W): the first leg's drives start there.
-        stations, order: as :class:`twin.envs.planner.CampaignPlanner`'s.
-        stands: every stand. at: each station's stand, by the station's name.
-        data: each station's data, by name (a station the paper's run did not calibrate at
-            has none).
-        leg_overhead: the shots' time of a leg, s.
-    """
-
-    def __init__(self, scenario: Scenario, layout: MoveLayout) -> None:
-        self.scenario, self.layout = scenario, layout
-        self.path = RoutePath(scenario.route.waypoints)
-        self.stations = site_stations(scenario, self.path)
-        self.order = tuple(name for name in self.stations if name != START)
-        if len(self.order) > layout.max_stations:
-            raise ValueError(
-                f"{scenario.name}: {len(self.order)} stations, more than max_stations = "
-                f"{layout.max_stations}"
-            )
-        base = scenario.campaign.formation
-        shortest = min(layout.step_factors)
-        self.cell = shortest * base.step
-        self.cells = {f: max(1, round(f / shortest)) for f in layout.step_factors}
-        self.forms = {name: formation_settings(name, base) for name in layout.formations}
-        self.marker = scenario.marker.assembly()
-        spec = scenario.noise.total_station.spec()
-        self.instrument_range = (spec.range_min, spec.range_max)
-        self.legs: dict[tuple[object, ...], _Leg | None] = {}
-        self._truths: dict[tuple[str, tuple[float, ...]], RobotTruth] = {}
-        self._data_steps: dict[tuple[str, int], tuple[Step, ...]] = {}
-        self._distances: dict[int, dict[str, float]] = {}
-        self._here: dict[int, str | None] = {}
-        self._headings: dict[int, float] = {}
-        self._session = PlanSession(scenario, "paper")
-        try:
-            self._record(self._session)
-        except BaseException:
-            self._session.close()
-            raise
-        self._build_stands()
-
-    # -- the site's paper run ---------------------------------------------------------------
-    def _record(self, session: PlanSession) -> None:
-        """Run the paper's campaign: its start, each station's data, the legs' overhead."""
-        start: list[Step] = []
-        while not session.done and not isinstance(session.question, NextVisit):
-            start.extend(session.answer(session.suggested()))
-        self.plan: BatchPlan = session.plan
-        self.start = tuple(start)
-        self.start_time = session.time
-        robots = (self.plan.parent, *self.plan.children)
-        self.speed = {name: session.max_speed(name) for name in robots}
-        where = {name: self.plan.start[name].pose[:2].copy() for name in robots}
-        self.start_xy = {name: xy.copy() for name, xy in where.items()}
-        # The reference data moved the children: the first leg drives from their last stops.
-        self.drive_time(where, ((s.robot, s.believed[:2]) for s in start if isinstance(s, Drive)))
-        self.ready_xy = {name: xy.copy() for name, xy in where.items()}
-        self.data: dict[str, _Data] = {}
-        overheads: list[float] = []
-        goal: object = None
-        while not session.done:
-            question, answer = session.question, session.suggested()
-            before, moved = session.time, where.copy()
-            steps = session.answer(answer)
-            driving = self.drive_time(
-                where, ((s.robot, s.believed[:2]) for s in steps if isinstance(s, Drive))
-            )
-            if isinstance(question, NextVisit):
-                goal = answer
-            elif isinstance(question, NextLeg) and isinstance(answer, Leg):
-                overheads.append(session.time - before - driving)
-            elif isinstance(question, DataStops) and isinstance(goal, Visit):
-                name = self._station_of(goal)
-                if name is not None and name not in self.data and _calibrates(steps):
-                    stops = {r: xy for r, xy in where.items() if not np.array_equal(xy, moved[r])}
-                    self.data[name] = _Data(steps, session.time - before, stops)
-        self.leg_overhead = float(np.mean(overheads)) if overheads else 0.0
-
-    def drive_time(
-        self,
-        where: dict[str, NDArray[np.float64]],
-        drives: Iterable[tuple[str, NDArray[np.float64]]],
-    ) -> float:
-        """The time of drives (robot, (2,) goal) in turn by the geometric clock (straight
-        travel at top speed), s; ``where`` (each robot's position) follows the robots."""
-        time = 0.0
-        for robot, xy in drives:
-            time += float(np.linalg.norm(xy - where[robot])) / self.speed[robot]
-            where[robot] = np.array(xy[:2], dtype=float)
-        return time
-
-    def _station_of(self, visit: Visit) -> str | None:
-        for name, st in self.stations.items():
-            if (
-                st.camera == visit.camera
-                and np.allclose(st.xy, visit.station)
-                and math.isclose(st.yaw, visit.yaw)
-            ):
-                return name
-        return None
-
-    # -- stands -----------------------------------------------------------------------------
-    def _build_stands(self) -> None:
-        keys = sorted({round(st.arc, 9) for st in self.stations.values()})
-        arcs: list[float] = []
-        for a, b in itertools.pairwise(keys):
-            n = max(1, math.ceil((b - a) / self.cell - 1e-9))
-            arcs.extend(a + (b - a) * m / n for m in range(n))
-        arcs.append(keys[-1])
-        stands = [Stand(i, self.path.at(s), s) for i, s in enumerate(arcs)]
-        self.at: dict[str, Stand] = {}
-        for name, st in self.stations.items():
-            stand = Stand(len(stands), st.xy.copy(), st.arc, name)
-            stands.append(stand)
-            self.at[name] = stand
-        self.stands = stands
-        self._route = np.array([s.arc for s in stands if s.station is None])
-
-    def travel(self, here: Stand, goal: str) -> tuple[list[Stand], float]:
-        """The stands of a travel from ``here`` to station ``goal``'s (the route's stands
-        strictly between, then the station's), and its direction (+1 or -1 along the
-        route)."""
-        end = self.at[goal]
-        direction = 1.0 if end.arc >= here.arc else -1.0
-        lo, hi = sorted((here.arc, end.arc))
-        inside = [s for s in self.stands if s.station is None and lo + 1e-6 < s.arc < hi - 1e-6]
-        inside.sort(key=lambda s: direction * s.arc)
-        return [*inside, end], direction
-
-    def distances(self, here: Stand) -> dict[str, float]:
-        """The parent's travel along the route from ``here`` to each station, m (by name;
-        worked out once per stand)."""
-        found = self._distances.get(here.index)
-        if found is None:
-            path = self.path
-            off = float(np.linalg.norm(path.at(here.arc) - here.xy))
-            found = self._distances[here.index] = {
-                name: abs(st.arc - here.arc) + off + float(np.linalg.norm(path.at(st.arc) - st.xy))
-                for name, st in self.stations.items()
-            }
-        return found
-
-    def heading(self, stand: Stand) -> float:
-        """The route's heading at a stand, rad (worked out once per stand)."""
-        found = self._headings.get(stand.index)
-        if found is None:
-            found = self._headings[stand.index] = self.path.heading(stand.arc)
-        return found
-
-    def station_at(self, here: Stand) -> str | None:
-        """The station within reach of ``here`` (the nearest), or None."""
-        if here.index not in self._here:
-            near = {n: float(np.linalg.norm(st.xy - here.xy)) for n, st in self.stations.items()}
-            name = min(near, key=near.__getitem__)
-            self._here[here.index] = name if near[name] < ARRIVED else None
-        return self._here[here.index]
-
-    def children_order(self, direction: float) -> list[str]:
-        """The two children, the one ahead along the route (at the start) first."""
-        s = {c: self.path.project(self.start_xy[c]) for c in self.plan.children[:2]}
-        return sorted(s, key=lambda c: direction * s[c], reverse=True)
-
-    # -- legs and data ----------------------------------------------------------------------
-    def truth(self, robot: str, pose: NDArray[np.float64]) -> RobotTruth:
-        """Where ``robot`` truly stands at ``pose`` (read back after the first time)."""
-        key = (robot, tuple(np.round(pose, 9).tolist()))
-        found = self._truths.get(key)
-        if found is None:
-            found = self._truths[key] = self._session.truth_at(robot, pose)
-        return found
-
-    def leg(
-        self,
-        here: Stand,
-        to: Stand,
-        direction: float,
-        name: str,
-        margins: tuple[float, ...],
-        heading: float,
-    ) -> _Leg | None:
-        """The leg from ``here`` to ``to`` with the children in formation ``name``, the
-        parent arriving with ``heading`` (rad); None where they have no room."""
-        key = (here.index, to.index, direction, name, margins, heading)
-        if key in self.legs:
-            return self.legs[key]
-        parent = self.plan.parent
-        instrument = self.plan.start[parent].instrument
-        assert instrument is not None
-        found = formation(
-            self.scenario.space,
-            self.marker.cubes_body,
-            self.instrument_range,
-            self.path,
-            to.arc,
-            here.xy,
-            to.xy,
-            direction,
-            self.forms[name],
-            float(instrument[2]),
-            None,
-            margins,
-        )
-        leg = None
-        if found is not None:
-            order = self.children_order(direction)
-            steps: list[Step] = []
-            stops: dict[str, NDArray[np.float64]] = {}
-            for child, stop in zip(order, found[1], strict=True):
-                pose = np.array([*stop.xy, stop.yaw])
-                steps += [Drive(child, pose, self.truth(child, pose)), Place(child)]
-                stops[child] = pose[:2]
-            pose = np.array([*to.xy, heading])
-            steps += [Drive(parent, pose, self.truth(parent, pose))]
-            steps += [Fix(tuple(c for c in self.plan.children if c in stops))]
-            stops[parent] = pose[:2]
-            leg = _Leg(tuple(steps), stops)
-        self.legs[key] = leg
-        return leg
-
-    def data_steps(self, station: str, visit: int) -> tuple[Step, ...]:
-        """The steps of the data set and calibration at ``station``, as visit ``visit`` of
-        its camera."""
-        key = (station, visit)
-        steps = self._data_steps.get(key)
-        if steps is None:
-            steps = tuple(_renumbered(s, visit) for s in self.data[station].steps)
-            self._data_steps[key] = steps
-        return steps
-
-    def close(self) -> None:
-        """Free the site's world."""
-        self._session.close()
-
-
-def _calibrates(steps: tuple[Step, ...]) -> bool:
-    return any(isinstance(s, Calibrate) for s in steps)
-
-
-_SITES: OrderedDict[tuple[str, MoveLayout], StandSite] = OrderedDict()
-
-
-def site_for(scenario: Scenario, layout: MoveLayout) -> StandSite:
-    """The process's table of a site (made on first use: a run of the paper's campaign)."""
-    key = (scenario.model_dump_json(), layout)
-    site = _SITES.get(key)
-    if site is None:
-        site = _SITES[key] = StandSite(scenario, layout)
-        while len(_SITES) > SITES:
-            _SITES.popitem(last=False)[1].close()
-    _SITES.move_to_end(key)
-    return site
-
-
-def clear_sites() -> None:
-    """Forget every site's table."""
-    while _SITES:
-        _SITES.popitem()[1].close()
 
 
 def rounded_std(parent_covariance: NDArray[np.float64]) -> float:
@@ -416,7 +65,7 @@ def rounded_std(parent_covariance: NDArray[np.float64]) -> float:
 @dataclass
 class StandPlanner(EpisodePlanner):
     """An episode's campaign on a site's table, advanced by an agent's moves (see the
-    module and :class:`twin.envs.planner.EpisodePlanner`).
+    module and :class:`twin.envs.episode.EpisodePlanner`).
 
     Args:
         scenario: the site. layout: the moves. budget_m: the parent's travel allowed, m.
@@ -446,7 +95,7 @@ class StandPlanner(EpisodePlanner):
         self._direction = 1.0
         self._where = {name: xy.copy() for name, xy in self.site.ready_xy.items()}
         self._mask: NDArray[np.bool_] | None = None
-        self._legs: list[_Leg | None] = []
+        self._legs: list[TableLeg | None] = []
         self.computed = 0
 
     # -- where the campaign stands ----------------------------------------------------------

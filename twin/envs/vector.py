@@ -24,7 +24,6 @@ knowledge.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,6 +37,7 @@ from twin.batch.execute import BatchRun
 from twin.batch.plan import Step
 from twin.batch.rows import execute_rows
 from twin.envs.campaign_env import CpsCampaignEnv, check_options
+from twin.envs.episode import Episode, SiteShare
 from twin.envs.knowledge import BatchKnowledge
 
 __all__ = ["SPARES", "CpsCampaignVectorEnv"]
@@ -57,7 +57,7 @@ class _Pool:
         members: the episodes on the site now.
     """
 
-    site: object
+    site: SiteShare
     batch: BatchRun
     known: BatchKnowledge
     members: set[int] = field(default_factory=set)
@@ -144,8 +144,8 @@ class CpsCampaignVectorEnv(VectorEnv):
         self._autoreset[:] = False
         self._run(self._start(list(range(self.num_envs)), seeds, options))
         infos: dict[str, Any] = {}
-        for k, env in enumerate(self.envs):
-            infos = self._add_info(infos, env._info(), k)
+        for k in range(self.num_envs):
+            infos = self._add_info(infos, self._episode(k).info(), k)
         return self._observations(), infos
 
     def _start(
@@ -162,21 +162,20 @@ class CpsCampaignVectorEnv(VectorEnv):
             env = self.envs[k]
             self._leave(k)
             gymnasium.Env.reset(env, seed=seed)
-            scenario, trial_seed = env._draw(options)
-            steps = env._prepare(scenario, trial_seed)
-            pool = self._pool_of(k)
+            episode = env.prepare(*env.draw(options))
+            pool = self._pool_of(episode)
             if self._home.get(k) is not pool:
                 self._spares[k] = []  # its spares were started on another site
             self._home[k] = pool
             pool.members.add(k)
             self._steps[k] = 0
             part = starts.setdefault(id(pool), _Starts(pool))
-            if self._spares[k] and self._spares[k][0][1] == trial_seed:
+            if self._spares[k] and self._spares[k][0][1] == episode.trial_seed:
                 self._active[k] = self._spares[k].pop(0)[0]
             else:
                 self._spares[k] = []
-                part.rows[self._active[k]] = trial_seed
-            part.episodes[k] = steps
+                part.rows[self._active[k]] = episode.trial_seed
+            part.episodes[k] = episode.start_steps
         self._pools = {key: p for key, p in self._pools.items() if p.members}
         for part in starts.values():
             if not part.rows:
@@ -206,40 +205,37 @@ class CpsCampaignVectorEnv(VectorEnv):
         moves = moves or {}
         for pool in self._pools.values():
             work: dict[int, tuple[Step, ...]] = {
-                self.envs[k]._row: moves[k][1] for k in pool.members if k in moves
+                self._episode(k).row: moves[k][1] for k in pool.members if k in moves
             }
             part = starts.get(id(pool))
             if part is not None:
-                start = pool.site.start  # type: ignore[attr-defined]
-                work.update(dict.fromkeys(part.rows, start))
+                work.update(dict.fromkeys(part.rows, pool.site.start))
             execute_rows(pool.batch, work)
         for part in starts.values():
             for k, steps in part.episodes.items():
-                self.envs[k]._attach(part.pool.batch, int(self._active[k]), steps, part.pool.known)
+                episode = self._episode(k)
+                episode.attach(part.pool.batch, int(self._active[k]), steps, part.pool.known)
 
     def _next_seeds(self, k: int) -> list[int]:
         """The noise seeds of episode ``k``'s next :data:`SPARES` episodes if it starts
         again by itself, on the same site (none where the next site is another)."""
-        env = self.envs[k]
-        if env.default_scenario is None or env.scenario is not env.default_scenario:
-            return []
-        saved = env._np_random
-        env._np_random = copy.deepcopy(saved)  # the draws of its next resets, not taken
-        try:
-            return [env._draw(None)[1] for _ in range(SPARES)]
-        finally:
-            env._np_random = saved
+        return self.envs[k].next_trial_seeds(SPARES)
 
-    def _pool_of(self, k: int) -> _Pool:
-        """The pool of episode ``k``'s site (made when it is the first on the site)."""
-        env = self.envs[k]
-        assert env.planner is not None
-        site = env.planner.memo
+    def _pool_of(self, episode: Episode) -> _Pool:
+        """The pool of ``episode``'s site (made when it is the first on the site)."""
+        site = episode.planner.memo
         pool = self._pools.get(id(site))
         if pool is None:
-            batch = BatchRun(env.planner.plan, [0] * ((SPARES + 1) * self.num_envs))
-            pool = self._pools[id(site)] = _Pool(site, batch, env.knowledge_of(batch))
+            batch = BatchRun(episode.planner.plan, [0] * ((SPARES + 1) * self.num_envs))
+            pool = self._pools[id(site)] = _Pool(site, batch, episode.knowledge_of(batch))
         return pool
+
+    def _episode(self, k: int) -> Episode:
+        """Episode ``k`` (started: the vector resets every episode first)."""
+        episode = self.envs[k].episode
+        if episode is None:
+            raise RuntimeError("call reset() first")
+        return episode
 
     def _leave(self, k: int) -> None:
         """Episode ``k`` leaves its pool."""
@@ -273,20 +269,21 @@ class CpsCampaignVectorEnv(VectorEnv):
         # Every move is resolved before anything changes: with strict=True a forbidden move
         # raises and leaves the vector as it was.
         resolved = {
-            k: self.envs[k]._resolve(actions[k]) for k in range(self.num_envs) if k not in resetting
+            k: self._episode(k).resolve(actions[k])
+            for k in range(self.num_envs)
+            if k not in resetting
         }
         starts = self._start(resetting, [None] * len(resetting), None) if resetting else {}
         taken: dict[int, tuple[int, tuple[Step, ...]]] = {}
         for k, (action, _) in resolved.items():
-            planner = self.envs[k].planner
-            assert planner is not None
-            taken[k] = (action, planner.act(action))
+            taken[k] = (action, self._episode(k).planner.act(action))
         self._run(starts, taken)
-        for k, env in enumerate(self.envs):
+        for k in range(self.num_envs):
+            episode = self._episode(k)
             if k in taken:
                 action, steps = taken[k]
-                reward = env._account(action, steps)
-                rewards[k], terminated[k], info = env._finish(action, reward, resolved[k][1])
+                reward = episode.account(action, steps)
+                rewards[k], terminated[k], info = episode.finish(action, reward, resolved[k][1])
                 self._steps[k] += 1
                 truncated[k] = (
                     not terminated[k]
@@ -294,7 +291,7 @@ class CpsCampaignVectorEnv(VectorEnv):
                     and self._steps[k] >= self.max_episode_steps
                 )
             else:
-                info = env._info()
+                info = episode.info()
             infos = self._add_info(infos, info, k)
         self._autoreset = terminated | truncated
         return self._observations(), rewards, terminated, truncated, infos
@@ -331,8 +328,8 @@ class CpsCampaignVectorEnv(VectorEnv):
         out: dict[str, NDArray[np.float64]] = {}
         for pool in self._pools.values():
             indices = sorted(pool.members)
-            episodes = [self.envs[k] for k in indices]
-            part = episodes[0].observations([e._row for e in episodes], episodes)
+            episodes = [self._episode(k) for k in indices]
+            part = episodes[0].observations([e.row for e in episodes], episodes)
             for key, values in part.items():
                 if key not in out:
                     out[key] = np.zeros((self.num_envs, *values.shape[1:]))

@@ -163,8 +163,8 @@ def test_pickling_round_trips_mid_episode():
     for _ in range(3):
         obs, *_, info = env.step(actor(obs, info))
     copy = pickle.loads(pickle.dumps(env))
-    assert same(copy._observation(), obs)
-    assert same(copy._info()["action_mask"], info["action_mask"])
+    assert same(copy.episode.observation(), obs)
+    assert same(copy.episode.info()["action_mask"], info["action_mask"])
     while True:
         action = actor(obs, info)
         a, b = env.step(action), copy.step(action)
@@ -255,7 +255,7 @@ def test_an_action_outside_the_space_is_refused(strict):
             env.planner.act(action)
     assert np.array_equal(env.action_masks(), before)
     assert env.plan.steps == steps
-    assert info["fallbacks"] == env._info()["fallbacks"] == 0
+    assert info["fallbacks"] == env.episode.info()["fallbacks"] == 0
     # Integers of numpy's kinds are actions: the same move as the Python int.
     allowed = int(np.flatnonzero(before)[0])
     for action in (np.int64(allowed), np.array(allowed), np.uint8(allowed)):

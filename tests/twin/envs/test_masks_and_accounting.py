@@ -14,8 +14,11 @@ from twin.batch.estimators import ParentEstimates
 from twin.batch.execute import transfer_rms
 from twin.batch.plan import Drive
 from twin.envs import CpsCampaignEnv
+from twin.envs.episode import visit_mask
+from twin.envs.leg_choices import LegChoices
 from twin.envs.moves import MoveLayout
-from twin.envs.planner import START, CampaignPlanner, LegChoices, visit_mask
+from twin.envs.planner import CampaignPlanner
+from twin.envs.site_stations import START
 from twin.envs.stands import StandPlanner
 from twin.scenario import load_scenario
 

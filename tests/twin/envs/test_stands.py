@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.batch.plan import PlanSession
 from twin.envs import ENV_ID, CpsCampaignEnv
-from twin.envs.stands import STD_STEP, rounded_std, site_for
+from twin.envs.stand_site import site_for
+from twin.envs.stands import STD_STEP, rounded_std
 from twin.scenario import load_scenario
 
 from .test_campaign_env import rollout, same
@@ -100,7 +101,7 @@ def test_pickling_round_trips_and_every_allowed_move_executes():
         decisions.add(info["decision"])
         for action in np.flatnonzero(info["action_mask"]):
             trial = pickle.loads(pickle.dumps(env))
-            assert same(trial._observation(), obs)
+            assert same(trial.episode.observation(), obs)
             _, _, _, _, after = trial.step(int(action))
             assert "fallback" not in after
             assert after["move"] == env.layout.describe(int(action))
