@@ -36,7 +36,7 @@ import shapely
 from shapely.geometry import LineString, Polygon
 
 from twin.planning.floor_map import FloorMap, MapError, MapObstacle
-from twin.planning.maps import (
+from twin.planning.map_reading import (
     check_keep,
     enclosed_regions,
     polygons_of,

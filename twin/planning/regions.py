@@ -25,7 +25,7 @@ from shapely.geometry import LineString, Point, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from twin.planning.floor_map import FloorMap
-from twin.planning.maps import polygons_of
+from twin.planning.map_reading import polygons_of
 from twin.scenario.robots import PIONEER3DX
 
 __all__ = [

@@ -41,7 +41,7 @@ from shapely.geometry import Polygon
 
 from calib.io.text import NotText, read_text, yaml_load
 from twin.planning.floor_map import FloorMap, MapError, MapObstacle
-from twin.planning.maps import check_keep, select_regions
+from twin.planning.map_reading import check_keep, select_regions
 
 __all__ = [
     "SPECKLE_AREA",
