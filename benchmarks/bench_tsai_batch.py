@@ -33,7 +33,7 @@ from rich.table import Table
 
 from calib import calibrate_tsai
 from calib.synthetic import led_points, paper_camera
-from calib.tsai_batch import calibrate_tsai_batch
+from calib.tsai_lm import calibrate_tsai_batch
 
 SIZES = (1, 10, 100, 1000)
 N_POINTS, SIGMA_PX, SIGMA_M = 70, 0.3, 1.5e-3

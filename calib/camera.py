@@ -9,10 +9,16 @@ A world point X (m) maps to a pixel (u, v) by
 
 Pixel (0, 0) is the centre of the top-left pixel. The camera frame is OpenCV's: x right,
 y down, z forward.
+
+The model is computed once, by functions over arrays with leading axes ``...`` (none for
+one camera, (T,) for one camera per Monte-Carlo trial): :class:`TsaiCamera` is one camera,
+:class:`TsaiCameras` T of them, and both project with the same functions. No computation
+mixes trials, so trial k of a batch is computed exactly as that camera alone.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -23,33 +29,66 @@ from calib.distortion import distort, undistort
 from calib.rotation import euler2matrix, look_at_world2cam, matrix2euler
 
 
+def _leading(value: float | ArrayLike) -> NDArray[np.float64]:
+    """A parameter of shape (...) -> (..., 1), to broadcast against N points."""
+    return np.asarray(value, dtype=float)[..., None]
+
+
 def project_tsai(
     points_world: NDArray[np.float64],
-    f: float,
-    cx: float,
-    cy: float,
-    sx: float,
-    kappa1: float,
+    f: float | NDArray[np.float64],
+    cx: float | NDArray[np.float64],
+    cy: float | NDArray[np.float64],
+    sx: float | NDArray[np.float64],
+    kappa1: float | NDArray[np.float64],
     world2cam_r: NDArray[np.float64],
     world2cam_t: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Project world points with Tsai's model, without input checks.
 
     Args:
-        points_world: (N, 3) points, m.
+        points_world: (..., N, 3) points, m: (N, 3) for one camera, (T, N, 3) for T.
         f: focal length, px. cx, cy: image centre, px. sx: horizontal scale factor.
-        kappa1: radial distortion, 1/px^2.
-        world2cam_r: (3, 3) rotation. world2cam_t: (3,) translation, m.
+        kappa1: radial distortion, 1/px^2. Each a float or of shape (...).
+        world2cam_r: (..., 3, 3) rotation. world2cam_t: (..., 3) translation, m.
 
     Returns:
-        (N, 2) pixels. Points with z_c <= 0 or beyond the distortion fold give NaN.
+        (..., N, 2) pixels. Points with z_c <= 0 or beyond the distortion fold give NaN.
     """
-    pc = points_world @ world2cam_r.T + world2cam_t
-    z = pc[:, 2:3]
+    pc = points_world @ np.swapaxes(world2cam_r, -1, -2) + world2cam_t[..., None, :]
+    z = pc[..., 2:3]
     with np.errstate(divide="ignore", invalid="ignore"):
-        xy_u = np.where(z > 0, f * pc[:, :2] / z, np.nan)
-    xy_d = distort(xy_u, kappa1)
-    return np.column_stack([sx * xy_d[:, 0] + cx, xy_d[:, 1] + cy])
+        xy_u = np.where(z > 0, _leading(f)[..., None] * pc[..., :2] / z, np.nan)
+    xy_d = distort(xy_u, _leading(kappa1))
+    u = _leading(sx) * xy_d[..., 0] + _leading(cx)
+    return np.stack([u, xy_d[..., 1] + _leading(cy)], axis=-1)
+
+
+def pixels_to_normalized(
+    pixels: NDArray[np.float64],
+    f: float | NDArray[np.float64],
+    cx: float | NDArray[np.float64],
+    cy: float | NDArray[np.float64],
+    sx: float | NDArray[np.float64],
+    kappa1: float | NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """(..., N, 2) distorted pixels -> (..., N, 2) undistorted normalised coordinates
+    x_c/z_c, without input checks (parameters as :func:`project_tsai`)."""
+    xd = (pixels[..., 0] - _leading(cx)) / _leading(sx)
+    xy_d = np.stack([xd, pixels[..., 1] - _leading(cy)], axis=-1)
+    return undistort(xy_d, _leading(kappa1)) / _leading(f)[..., None]
+
+
+def lines_of_sight(
+    normalized: NDArray[np.float64], world2cam_r: NDArray[np.float64], position: NDArray
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(..., N, 2) normalised coordinates, (..., 3, 3) rotations and (..., 3) optical
+    centres (m) -> the (..., N, 3) origins (m) and unit directions of the lines of sight."""
+    rays = np.concatenate([normalized, np.ones((*normalized.shape[:-1], 1))], axis=-1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    directions = rays @ world2cam_r
+    origins = np.broadcast_to(position[..., None, :], directions.shape).copy()
+    return origins, directions
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,9 +225,7 @@ class TsaiCamera:
 
     def pixels_to_normalized(self, pixels: ArrayLike) -> NDArray[np.float64]:
         """(N, 2) distorted pixels -> (N, 2) undistorted normalised coordinates x_c/z_c."""
-        uv = check_pixels(pixels)
-        xy_d = np.column_stack([(uv[:, 0] - self.cx) / self.sx, uv[:, 1] - self.cy])
-        return undistort(xy_d, self.kappa1) / self.f
+        return pixels_to_normalized(check_pixels(pixels), *self._intrinsics())
 
     def unproject(self, pixels: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Lines of sight through (N, 2) pixels.
@@ -197,12 +234,7 @@ class TsaiCamera:
             origins: (N, 3) the optical centre in the world frame, m (same for every row).
             directions: (N, 3) unit directions in the world frame.
         """
-        xy = self.pixels_to_normalized(pixels)
-        rays_c = np.column_stack([xy, np.ones(len(xy))])
-        rays_c /= np.linalg.norm(rays_c, axis=1, keepdims=True)
-        directions = rays_c @ self.world2cam_r
-        origins = np.broadcast_to(self.position, directions.shape).copy()
-        return origins, directions
+        return lines_of_sight(self.pixels_to_normalized(pixels), self.world2cam_r, self.position)
 
     def in_image(self, pixels: ArrayLike) -> NDArray[np.bool_]:
         """(N,) True where a pixel lies inside the image (OpenCV convention)."""
@@ -218,6 +250,7 @@ class TsaiCamera:
         )
 
     def _intrinsics(self) -> tuple[float, float, float, float, float]:
+        """(f, cx, cy, sx, kappa1), the order of :func:`project_tsai`."""
         return self.f, self.cx, self.cy, self.sx, self.kappa1
 
     def __eq__(self, other: object) -> bool:
@@ -233,75 +266,140 @@ class TsaiCamera:
     __hash__ = None  # type: ignore[assignment]
 
 
-def project_tsai_jacobian(
-    points_world: NDArray[np.float64],
-    f: float,
-    sx: float,
-    kappa1: float,
-    world2cam_r: NDArray[np.float64],
-    camera_position: NDArray[np.float64],
-    drot: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Pixels and their analytic derivatives with respect to Tsai's parameters.
+@dataclass(frozen=True, eq=False)
+class TsaiCameras:
+    """T cameras of Tsai's model, one per trial (the attributes of :class:`TsaiCamera`).
 
-    The parameters are (f, cx, cy, sx, kappa1, rotation (3), camera position C (3)); the
-    camera frame point is ``R @ (X - C)``. The rotation enters through ``drot``, the (3, 3)
-    derivative of R with respect to the three rotation parameters as used by the caller
-    (the right Jacobian of SO(3) for a rotation vector): d(R v)/d(rot) = -R skew(v) drot.
-
-    Args:
-        points_world: (N, 3) points, m. f: px. sx: -. kappa1: 1/px^2.
-        world2cam_r: (3, 3). camera_position: (3,) optical centre in the world, m.
-        drot: (3, 3) see above.
-
-    Returns:
-        pixels (N, 2) and the Jacobian (N, 2, 11) in the order f, cx, cy, sx, kappa1,
-        rot(3), C(3). Points behind the camera give NaN.
+    Attributes:
+        f: (T,) focal length / pixel height, px.
+        cx, cy: (T,) image centre, px (OpenCV convention).
+        kappa1: (T,) radial distortion, 1/px^2 (Tsai's direction).
+        sx: (T,) horizontal scale factor.
+        world2cam_r: (T, 3, 3) rotations from the world to the camera frame.
+        position: (T, 3) optical centres in the world frame, m.
+        image_size: (width, height), px, shared by all T cameras.
+        world2cam_t: (T, 3) translations from the world to the camera frame, m; None
+            gives ``-R @ position``.
     """
-    v = points_world - camera_position
-    pc = v @ world2cam_r.T
-    z = pc[:, 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        zi = np.where(z > 0, 1.0 / z, np.nan)
-    xn, yn = pc[:, 0] * zi, pc[:, 1] * zi
-    xu, yu = f * xn, f * yn
-    ru2 = xu * xu + yu * yu
-    t = kappa1 * ru2
-    s = distort(np.ones((len(t), 1)) * np.sqrt(np.maximum(ru2, 0))[:, None], kappa1)[:, 0]
-    s = np.where(ru2 > 0, s / np.sqrt(np.where(ru2 > 0, ru2, 1.0)), 1.0)
-    ds_dt = -(s**3) / (1.0 + 3.0 * t * s * s)
-    xd, yd = s * xu, s * yu
-    # d(xd, yd) / d(xu, yu)
-    g = ds_dt * kappa1 * 2.0
-    a11, a12 = s + xu * g * xu, xu * g * yu
-    a21, a22 = yu * g * xu, s + yu * g * yu
-    n = len(points_world)
-    jac = np.zeros((n, 2, 11))
-    # f: xu = f xn
-    dxd_df = a11 * xn + a12 * yn
-    dyd_df = a21 * xn + a22 * yn
-    jac[:, 0, 0], jac[:, 1, 0] = sx * dxd_df, dyd_df
-    jac[:, 0, 1] = 1.0
-    jac[:, 1, 2] = 1.0
-    jac[:, 0, 3] = xd
-    ds_dk = ds_dt * ru2
-    jac[:, 0, 4], jac[:, 1, 4] = sx * xu * ds_dk, yu * ds_dk
-    # d(xn, yn) / d(pc): rows (2, 3) per point
-    dn_dpc = np.zeros((n, 2, 3))
-    dn_dpc[:, 0, 0] = zi
-    dn_dpc[:, 0, 2] = -xn * zi
-    dn_dpc[:, 1, 1] = zi
-    dn_dpc[:, 1, 2] = -yn * zi
-    # d(u, v) / d(xn, yn) = diag(sx, 1) @ A @ f
-    a = np.stack([np.stack([a11, a12], -1), np.stack([a21, a22], -1)], -2) * f
-    a[:, 0, :] *= sx
-    duv_dpc = a @ dn_dpc  # (N, 2, 3)
-    # pc = R (X - C): d pc / d C = -R ; d pc / d rot = -R skew(v) drot
-    jac[:, :, 8:11] = -duv_dpc @ world2cam_r
-    sk = np.zeros((n, 3, 3))
-    sk[:, 0, 1], sk[:, 0, 2] = -v[:, 2], v[:, 1]
-    sk[:, 1, 0], sk[:, 1, 2] = v[:, 2], -v[:, 0]
-    sk[:, 2, 0], sk[:, 2, 1] = -v[:, 1], v[:, 0]
-    jac[:, :, 5:8] = -(duv_dpc @ world2cam_r) @ sk @ drot
-    uv = np.column_stack([sx * xd, yd])
-    return uv, jac
+
+    f: NDArray[np.float64]
+    cx: NDArray[np.float64]
+    cy: NDArray[np.float64]
+    kappa1: NDArray[np.float64]
+    sx: NDArray[np.float64]
+    world2cam_r: NDArray[np.float64] = field(repr=False)
+    position: NDArray[np.float64] = field(repr=False)
+    image_size: tuple[int, int] = (320, 240)
+    world2cam_t: NDArray[np.float64] = field(default=None, repr=False)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.world2cam_r, dtype=float)
+        if r.ndim != 3 or r.shape[1:] != (3, 3):
+            raise ValueError(f"world2cam_r must have shape (T, 3, 3), got {r.shape}")
+        n = len(r)
+        c = np.asarray(self.position, dtype=float)
+        if c.shape != (n, 3):
+            raise ValueError(f"position must have shape ({n}, 3), got {c.shape}")
+        for name in ("f", "cx", "cy", "kappa1", "sx"):
+            a = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (n,))
+            if not np.isfinite(a).all():
+                raise ValueError(f"camera parameter {name} must be finite")
+            object.__setattr__(self, name, a)
+        if (self.f <= 0).any() or (self.sx <= 0).any():
+            raise ValueError("f and sx must be positive")
+        gram = r @ np.swapaxes(r, -1, -2)
+        if not np.allclose(gram, np.eye(3), atol=1e-9) or (np.linalg.det(r) < 0).any():
+            raise ValueError("world2cam_r must hold proper rotation matrices")
+        if not np.isfinite(c).all():
+            raise ValueError("position must be finite")
+        if self.world2cam_t is None:
+            t = -(r @ c[:, :, None])[:, :, 0]
+        else:
+            t = np.asarray(self.world2cam_t, dtype=float)
+            if t.shape != (n, 3):
+                raise ValueError(f"world2cam_t must have shape ({n}, 3), got {t.shape}")
+        object.__setattr__(self, "world2cam_r", r)
+        object.__setattr__(self, "position", c)
+        object.__setattr__(self, "world2cam_t", t)
+        object.__setattr__(self, "image_size", check_image_size(self.image_size))
+
+    @classmethod
+    def from_cameras(cls, cameras: Sequence[TsaiCamera]) -> TsaiCameras:
+        """Stack T cameras of the same image size."""
+        sizes = {c.image_size for c in cameras}
+        if len(sizes) != 1:
+            raise ValueError(f"the cameras must share one image size, got {sorted(sizes)}")
+
+        def col(name: str) -> NDArray[np.float64]:
+            return np.array([getattr(c, name) for c in cameras], dtype=float)
+
+        return cls(
+            col("f"),
+            col("cx"),
+            col("cy"),
+            col("kappa1"),
+            col("sx"),
+            np.stack([c.world2cam_r for c in cameras]),
+            np.stack([c.position for c in cameras]),
+            sizes.pop(),
+            np.stack([c.world2cam_t for c in cameras]),
+        )
+
+    def __len__(self) -> int:
+        return len(self.world2cam_r)
+
+    def camera(self, k: int) -> TsaiCamera:
+        """Camera k as a :class:`TsaiCamera`."""
+        r = self.world2cam_r[k]
+        return TsaiCamera(
+            float(self.f[k]),
+            float(self.cx[k]),
+            float(self.cy[k]),
+            float(self.kappa1[k]),
+            float(self.sx[k]),
+            r,
+            self.world2cam_t[k],
+            self.image_size,
+        )
+
+    def to_camera_frame(self, points_world: ArrayLike) -> NDArray[np.float64]:
+        """(T, N, 3) world points -> (T, N, 3) points in each camera's frame, m."""
+        p = _points(points_world, len(self))
+        return p @ np.swapaxes(self.world2cam_r, -1, -2) + self.world2cam_t[:, None, :]
+
+    def project_or_nan(self, points_world: ArrayLike) -> NDArray[np.float64]:
+        """(T, N, 3) world points (m) -> (T, N, 2) distorted pixels; NaN rows where a point
+        lies behind its camera or beyond the fold of a negative kappa1."""
+        p = _points(points_world, len(self))
+        return project_tsai(p, *self._intrinsics(), self.world2cam_r, self.world2cam_t)
+
+    def pixels_to_normalized(self, pixels: ArrayLike) -> NDArray[np.float64]:
+        """(T, N, 2) distorted pixels -> (T, N, 2) undistorted normalised coordinates."""
+        return pixels_to_normalized(_pixels(pixels, len(self)), *self._intrinsics())
+
+    def unproject(self, pixels: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Lines of sight through (T, N, 2) pixels.
+
+        Returns:
+            origins: (T, N, 3) each camera's optical centre in the world frame, m.
+            directions: (T, N, 3) unit directions in the world frame.
+        """
+        return lines_of_sight(self.pixels_to_normalized(pixels), self.world2cam_r, self.position)
+
+    def _intrinsics(self) -> tuple[NDArray[np.float64], ...]:
+        """(f, cx, cy, sx, kappa1), each (T,), the order of :func:`project_tsai`."""
+        return self.f, self.cx, self.cy, self.sx, self.kappa1
+
+
+def _points(points_world: ArrayLike, n: int) -> NDArray[np.float64]:
+    p = np.asarray(points_world, dtype=float)
+    if p.ndim != 3 or p.shape[0] != n or p.shape[2] != 3:
+        raise ValueError(f"points must have shape ({n}, N, 3), got {p.shape}")
+    return p
+
+
+def _pixels(pixels: ArrayLike, n: int) -> NDArray[np.float64]:
+    uv = np.asarray(pixels, dtype=float)
+    if uv.ndim != 3 or uv.shape[0] != n or uv.shape[2] != 2:
+        raise ValueError(f"pixels must have shape ({n}, N, 2), got {uv.shape}")
+    return uv

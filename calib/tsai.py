@@ -17,7 +17,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
-from calib.camera import TsaiCamera, project_tsai, project_tsai_jacobian
+from calib.camera import TsaiCamera, project_tsai
+from calib.camera_jacobian import project_tsai_jacobian
 from calib.checks import (
     check_correspondences,
     check_image_size,
@@ -35,30 +36,17 @@ from calib.duplicates import drop_duplicates
 from calib.result import CalibrationResult, result_from_fit
 from calib.rotation import matrix2euler, matrix2rotvec, right_jacobian, rotvec2matrix
 from calib.tsai_linear import LINEAR_MIN_POINTS, tsai_initial_estimate
+from calib.tsai_parameters import (
+    N_TSAI,
+    TSAI_PARAMETERS,
+    kappa_scale,
+    pack,
+    reported,
+    unpack,
+)
 
-TSAI_PARAMETERS = ("f_px", "cx", "cy", "sx", "kappa1_px", "rx", "ry", "rz", "x", "y", "z")
 EXTERIOR_PARAMETERS = ("rx", "ry", "rz", "x", "y", "z")
-N_TSAI = len(TSAI_PARAMETERS)
 FULL_MIN_POINTS = 6  # 11 parameters need at least 12 residuals
-
-
-def _kappa_scale(image_size: tuple[int, int]) -> float:
-    """Squared half-diagonal of the image, px^2: kappa1 is optimised as kappa1 * this."""
-    w, h = image_size
-    return (w / 2.0) ** 2 + (h / 2.0) ** 2
-
-
-def _pack(cam: TsaiCamera) -> NDArray[np.float64]:
-    """Camera -> internal parameters [f, cx, cy, sx, kappa1*r_ref^2, rotvec(3), C(3)]."""
-    k = cam.kappa1 * _kappa_scale(cam.image_size)
-    rv = matrix2rotvec(cam.world2cam_r)
-    return np.concatenate([[cam.f, cam.cx, cam.cy, cam.sx, k], rv, cam.position])
-
-
-def _unpack(q: NDArray[np.float64], image_size: tuple[int, int]) -> TsaiCamera:
-    r = rotvec2matrix(q[5:8])
-    k = q[4] / _kappa_scale(image_size)
-    return TsaiCamera(q[0], q[1], q[2], k, q[3], r, -r @ q[8:11], image_size)
 
 
 def _project_q(
@@ -66,12 +54,6 @@ def _project_q(
 ) -> NDArray[np.float64]:
     r = rotvec2matrix(q[5:8])
     return project_tsai(p3, q[0], q[1], q[2], q[3], q[4] / kscale, r, -r @ q[8:11])
-
-
-def _reported(q: NDArray[np.float64], kscale: float) -> NDArray[np.float64]:
-    """Internal parameters -> reported [f, cx, cy, sx, kappa1, rx, ry, rz, x, y, z]."""
-    euler = matrix2euler(rotvec2matrix(q[5:8]))
-    return np.concatenate([q[:4], [q[4] / kscale], euler, q[8:11]])
 
 
 def _steps(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -83,12 +65,12 @@ def _pixel_jacobian(
     p3: NDArray[np.float64], image_size: tuple[int, int]
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """Internal parameters -> (2N, 11) analytic Jacobian of the projected pixels."""
-    kscale = _kappa_scale(image_size)
+    kscale = kappa_scale(image_size)
 
     def jac_of(q: NDArray[np.float64]) -> NDArray[np.float64]:
         r = rotvec2matrix(q[5:8])
         _, j = project_tsai_jacobian(
-            p3, q[0], q[3], q[4] / kscale, r, q[8:11], right_jacobian(q[5:8])
+            p3, q[0], q[1], q[2], q[3], q[4] / kscale, r, q[8:11], right_jacobian(q[5:8])
         )
         j[:, :, 4] /= kscale
         return np.nan_to_num(j.reshape(-1, N_TSAI), nan=0.0)
@@ -100,7 +82,7 @@ def _pixel_function(
     p3: NDArray[np.float64], image_size: tuple[int, int]
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """Internal parameters -> (2N,) projected pixels of the points (NaN-free: 1e6 if invalid)."""
-    kscale = _kappa_scale(image_size)
+    kscale = kappa_scale(image_size)
 
     def pixels_of(q: NDArray[np.float64]) -> NDArray[np.float64]:
         uv = _project_q(q, p3, kscale).ravel()
@@ -115,7 +97,7 @@ def _reported_covariance(
     """Covariance of the internal parameters -> covariance of the reported ones."""
     angle_mask = np.zeros(N_TSAI, dtype=bool)
     angle_mask[5:8] = True
-    return propagate_covariance(cov_q, lambda x: _reported(x, kscale), q, _steps(q), angle_mask)
+    return propagate_covariance(cov_q, lambda x: reported(x, kscale), q, _steps(q), angle_mask)
 
 
 def predicted_covariance(
@@ -136,10 +118,10 @@ def predicted_covariance(
         (11, 11) covariance in the order of ``TSAI_PARAMETERS`` (SI units).
     """
     p3 = check_points_3d(points_3d)
-    q = _pack(camera)
+    q = pack(camera)
     j = _pixel_jacobian(p3, camera.image_size)(q)
     cov_q = sigma_px**2 * unit_covariance(j)
-    return _reported_covariance(cov_q, q, _kappa_scale(camera.image_size))
+    return _reported_covariance(cov_q, q, kappa_scale(camera.image_size))
 
 
 def pixel_jacobian(camera: TsaiCamera, points_3d: ArrayLike) -> NDArray[np.float64]:
@@ -158,19 +140,19 @@ def pixel_jacobian(camera: TsaiCamera, points_3d: ArrayLike) -> NDArray[np.float
         (N, 2, 11) Jacobian, px per parameter (0 for points behind the camera).
     """
     p3 = np.asarray(points_3d, dtype=float).reshape(-1, 3)
-    return _pixel_jacobian(p3, camera.image_size)(_pack(camera)).reshape(len(p3), 2, N_TSAI)
+    return _pixel_jacobian(p3, camera.image_size)(pack(camera)).reshape(len(p3), 2, N_TSAI)
 
 
 def tsai_vector(camera: TsaiCamera) -> NDArray[np.float64]:
     """The (11,) parameter vector a calibration optimises (see :func:`pixel_jacobian`):
     f, cx, cy, sx (px, px, px, -), kappa1 times the squared half-diagonal of the image (-),
     the world-to-camera rotation vector (rad) and the optical centre in the world (m)."""
-    return _pack(camera)
+    return pack(camera)
 
 
 def tsai_from_vector(q: ArrayLike, image_size: tuple[int, int]) -> TsaiCamera:
     """The camera of an (11,) parameter vector (:func:`tsai_vector`'s inverse)."""
-    return _unpack(np.asarray(q, dtype=float), check_image_size(image_size))
+    return unpack(np.asarray(q, dtype=float), check_image_size(image_size))
 
 
 def tsai_pixels_and_jacobian(
@@ -189,7 +171,7 @@ def tsai_pixels_and_jacobian(
     """
     x = np.asarray(q, dtype=float)
     p3 = np.asarray(points_3d, dtype=float).reshape(-1, 3)
-    kscale = _kappa_scale(image_size)
+    kscale = kappa_scale(image_size)
     jac = _pixel_jacobian(p3, image_size)(x).reshape(len(p3), 2, N_TSAI)
     return _project_q(x, p3, kscale), jac
 
@@ -201,9 +183,9 @@ def tsai_reported(
     (``TSAI_PARAMETERS``: rotation as Euler angles, kappa1 in 1/px^2), as a calibration
     reports them."""
     x = np.asarray(q, dtype=float)
-    kscale = _kappa_scale(image_size)
+    kscale = kappa_scale(image_size)
     cov = _reported_covariance(np.asarray(covariance, dtype=float), x, kscale)
-    return _reported(x, kscale), cov
+    return reported(x, kscale), cov
 
 
 def calibrate_tsai(
@@ -258,7 +240,7 @@ def calibrate_tsai(
             f"close to coplanar for their noise (point-cloud condition number {spread:.3g}, "
             f"linear-stage condition number {init.condition:.3g})"
         )
-    kscale = _kappa_scale(size)
+    kscale = kappa_scale(size)
     pixels_of = _pixel_function(p3, size)
     uv_flat = uv.ravel()
 
@@ -267,12 +249,12 @@ def calibrate_tsai(
 
     jac = _pixel_jacobian(p3, size)
 
-    q0 = _pack(cam0)
+    q0 = pack(cam0)
     sol = least_squares(
         residual, q0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200
     )
     q = sol.x
-    cam = _unpack(q, size)
+    cam = unpack(q, size)
     if (cam.to_camera_frame(p3)[:, 2] <= 0).any():
         raise ValueError("the optimisation put points behind the camera; the data are inconsistent")
 
@@ -283,7 +265,7 @@ def calibrate_tsai(
         q,
         jac(q),
         residual(q),
-        lambda x: _reported(x, kscale),
+        lambda x: reported(x, kscale),
         _steps(q),
         p3,
         uv,

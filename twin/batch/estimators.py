@@ -27,11 +27,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib import calibrate_tsai, evaluate
-from calib.camera import TsaiCamera
-from calib.camera_batch import TsaiCameras
-from calib.metrics_batch import pose_errors
+from calib.camera import TsaiCamera, TsaiCameras
+from calib.metrics import pose_errors
+from calib.point_errors import covariance_from_point_errors
 from calib.rotation import rot_z
-from calib.tsai_batch import covariance_from_point_errors
 from twin.instruments.consistency import chi2_threshold
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import MARKER_DOF, MarkerPose, cube_centroid, fit_marker_pose
@@ -238,7 +237,7 @@ class Estimators(abc.ABC):
     ) -> NDArray[np.float64]:
         """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of
         its (T, n, 3) points (NaN where not calibrated), to first order at the calibrated
-        camera (:func:`calib.tsai_batch.covariance_from_point_errors`).
+        camera (:func:`calib.point_errors.covariance_from_point_errors`).
 
         The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its
         LEDs share the marker's measured pose), in a layout of S k / 3 points: ``slots``

@@ -19,9 +19,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import TsaiCamera
-from calib.camera_batch import TsaiCameras
-from calib.metrics_batch import pose_errors
+from calib.camera import TsaiCamera, TsaiCameras
+from calib.metrics import pose_errors
 from calib.tsai import tsai_from_vector, tsai_vector
 from twin.campaign.check.consistency import DEFAULT_FALSE_ALARM_RATE
 from twin.localization.adjustment import NothingToAdjustError, adjust_network

@@ -5,8 +5,8 @@ the batched forms of the campaign's own estimators: the marker fit and the child
 observation (:func:`twin.localization.observation_batch.observe_child_batch`), the CPS state
 (:class:`twin.localization.sequence_batch.CpsBatch`), the LED positions
 (:func:`twin.instruments.marker_pose_batch.led_positions_batch`), Tsai's calibration
-(:func:`calib.tsai_batch.calibrate_tsai_batch`, from the visit's noise-free calibration)
-and the Table III metrics (:mod:`calib.metrics_batch`). The positioning numbers are the
+(:func:`calib.tsai_lm.calibrate_tsai_batch`, from the visit's noise-free calibration)
+and the Table III metrics (:mod:`calib.metrics`). The positioning numbers are the
 scalar code's bit for bit, the calibrations its own to a small fraction of their standard
 deviations (the tests hold them to it); no trial's numbers depend on the other trials of
 its batch.
@@ -27,15 +27,12 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera_batch import TsaiCameras
+from calib.camera import TsaiCameras
 from calib.checks import DegenerateGeometryWarning, InputWarning
-from calib.metrics_batch import errors_3d_batch, pixel_errors_batch
+from calib.metrics import errors_3d_batch, pixel_errors_batch
+from calib.point_errors import position_covariance_from_blocks
 from calib.tsai import FULL_MIN_POINTS
-from calib.tsai_batch import (
-    TsaiBatchResult,
-    calibrate_tsai_batch,
-    position_covariance_from_blocks,
-)
+from calib.tsai_lm import TsaiBatchResult, calibrate_tsai_batch
 from twin.batch.estimators import (
     Calibrations,
     CpsStates,

@@ -249,7 +249,7 @@ def survey_layout(
     (:func:`survey_loading`, each (..., r_s, M) with r_s <= ``k`` rows: the stop's LEDs) in
     a layout of one block of ``k`` rows a stop, each stop's rows at the start of its block:
     (..., S k, C M) for the C children (the argument ``shared`` of
-    :func:`calib.tsai_batch.position_covariance_from_blocks`); None where no stop has one
+    :func:`calib.point_errors.position_covariance_from_blocks`); None where no stop has one
     (an empty loading: an assembly known exactly).
     """
     if not any(load.size for load in loadings):

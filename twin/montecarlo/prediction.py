@@ -13,7 +13,7 @@ deviations (Tsai's least squares). Two parts make a calibrated camera's world-fr
   errors of those LED positions. The LEDs of one stop are placed with their marker's
   measured pose, so they share its error (``DataPoint.leds_covariance``, one block a
   stop): it does not average down over the points as independent errors would
-  (:func:`calib.tsai_batch.position_covariance_from_blocks`).
+  (:func:`calib.point_errors.position_covariance_from_blocks`).
 
 The prediction is first order and treats the parts as independent.
 """
@@ -27,11 +27,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from calib.camera import TsaiCamera
-from calib.camera_batch import TsaiCameras
+from calib.camera import TsaiCamera, TsaiCameras
 from calib.covariance import own_position_variance
 from calib.io.camera_files import camera_from_dict
-from calib.tsai_batch import position_covariance_from_blocks
+from calib.point_errors import position_covariance_from_blocks
 from twin.campaign.records import CALIBRATION, PARENT_FIX, POINT
 from twin.instruments.marker_pose import survey_layout
 from twin.truth import TRUTH_INSTRUMENT, instrument_truth

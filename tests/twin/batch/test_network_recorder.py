@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.testing import assert_allclose
 
-from calib.camera_batch import TsaiCameras
+from calib.camera import TsaiCameras
 from calib.rotation import rot_z
 from calib.synthetic import paper_camera
 from calib.tsai import tsai_vector

@@ -155,8 +155,8 @@ def test_partial_points_reach_the_calibration(smoke):
 def test_points_variance_with_stops_of_different_led_counts():
     # Blocks of 2, 4 and 1 LEDs: the padded layout gives what the joint covariance
     # (block-diagonal, written out) gives.
-    from calib.camera_batch import TsaiCameras
-    from calib.tsai_batch import position_covariance_from_blocks
+    from calib.camera import TsaiCameras
+    from calib.point_errors import position_covariance_from_blocks
     from twin.montecarlo.prediction import points_variance
 
     sc = load_scenario(ROOT / "scenarios" / "smoke.toml")

@@ -20,10 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from calib.camera import TsaiCamera
-from calib.camera_batch import TsaiCameras
+from calib.camera import TsaiCamera, TsaiCameras
+from calib.point_errors import position_covariance_from_blocks
 from calib.tsai import pixel_jacobian, predicted_covariance
-from calib.tsai_batch import position_covariance_from_blocks
 from twin.campaign.plan.stop import Stop
 from twin.campaign.plan.view_stops import (
     ViewStop,
@@ -154,7 +153,7 @@ def predicted_position_covariance(
     LED points: the Cramer-Rao bound for ``pixel_px`` of pixel noise
     (:func:`calib.tsai.predicted_covariance`) plus the first-order effect of the points'
     own errors (:func:`point_covariance`, independent points;
-    :func:`calib.tsai_batch.position_covariance_from_blocks`)."""
+    :func:`calib.point_errors.position_covariance_from_blocks`)."""
     p3 = np.asarray(points, dtype=float).reshape(-1, 3)
     pixel = predicted_covariance(camera, p3, pixel_px)[8:11, 8:11]
     blocks = point_covariance(p3, instrument, spec)

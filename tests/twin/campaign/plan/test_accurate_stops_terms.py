@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calib.tsai import pixel_jacobian
-from calib.tsai_batch import calibrate_tsai_batch
+from calib.tsai_lm import calibrate_tsai_batch
 from twin.campaign.plan.accurate_stops import (
     PLAN_PIXEL_PX,
     SEED_POINTS,

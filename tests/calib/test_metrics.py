@@ -1,13 +1,13 @@
-"""Batched Table III metrics equal calib.metrics.evaluate trial by trial."""
+"""Table III metrics of T cameras equal calib.metrics.evaluate trial by trial, bit for bit."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
-from calib.camera_batch import TsaiCameras
-from calib.metrics import evaluate
-from calib.metrics_batch import evaluate_batch, pose_errors
+from calib.camera import TsaiCameras
+from calib.metrics import evaluate, evaluate_batch, pose_errors
 from calib.rotation import euler2matrix, rotation_angle_between
 from calib.synthetic import led_points, paper_camera
 
@@ -46,8 +46,9 @@ def test_metrics_equal_evaluate_per_trial() -> None:
     for k, c in enumerate(cams):
         ref = evaluate(c, points[k], pixels[k])
         for name in ("mean", "rms", "std", "max"):
-            assert_allclose(getattr(m.pixel, name)[k], getattr(ref.pixel, name), rtol=1e-9)
-            assert_allclose(getattr(m.error_3d, name)[k], getattr(ref.error_3d, name), rtol=1e-9)
+            assert getattr(m.pixel, name)[k] == getattr(ref.pixel, name)
+            assert getattr(m.error_3d, name)[k] == getattr(ref.error_3d, name)
+            assert isinstance(getattr(ref.pixel, name), float)
 
 
 def test_pose_errors_against_the_truth() -> None:
@@ -72,3 +73,5 @@ def test_a_point_behind_its_camera_gives_nan_for_its_trial_only() -> None:
     m = evaluate_batch(TsaiCameras.from_cameras([cam, cam]), points, pixels)
     assert m.pixel.mean[0] < 1e-9
     assert np.isnan(m.pixel.mean[1])
+    with pytest.raises(ValueError, match="behind the camera, first in row 3"):
+        evaluate(cam, points[1], pixels[1])

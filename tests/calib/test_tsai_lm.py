@@ -7,17 +7,13 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from calib import calibrate_tsai
-from calib.camera_batch import TsaiCameras
+from calib.camera import TsaiCameras
+from calib.point_errors import covariance_from_point_errors, position_covariance_from_blocks
 from calib.rotation import euler2matrix
 from calib.synthetic import led_points, paper_camera
-from calib.tsai import TSAI_PARAMETERS, _pack, predicted_covariance
-from calib.tsai_batch import (
-    INVALID_PX,
-    TsaiBatchResult,
-    calibrate_tsai_batch,
-    covariance_from_point_errors,
-    position_covariance_from_blocks,
-)
+from calib.tsai import TSAI_PARAMETERS, predicted_covariance
+from calib.tsai_lm import TsaiBatchResult, calibrate_tsai_batch
+from calib.tsai_parameters import INVALID_PX, pack
 
 TRIALS = 50
 
@@ -126,7 +122,7 @@ def test_start_from_parameters_and_shared_points(visit) -> None:
     cam, start, points, pixels = visit
     pts = points[0]
     a = calibrate_tsai_batch(pts, pixels[:3], cam.image_size, start)
-    b = calibrate_tsai_batch(np.stack([pts] * 3), pixels[:3], cam.image_size, _pack(start))
+    b = calibrate_tsai_batch(np.stack([pts] * 3), pixels[:3], cam.image_size, pack(start))
     assert_array_equal(a.q, b.q)
 
 
