@@ -32,8 +32,7 @@ from rich.console import Console
 from rich.table import Table
 
 from twin.instruments.marker import MarkerAssembly
-from twin.instruments.marker_pose import fit_marker_pose
-from twin.instruments.marker_pose_batch import fit_marker_pose_batch
+from twin.instruments.marker_pose import fit_marker_pose, fit_marker_pose_batch
 from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import polar2cartesian
 from twin.instruments.shot import measure_points

@@ -4,7 +4,7 @@
 the batched forms of the campaign's own estimators: the marker fit and the child's
 observation (:func:`twin.localization.observation_batch.observe_child_batch`), the CPS state
 (:class:`twin.localization.sequence_batch.CpsBatch`), the LED positions
-(:func:`twin.instruments.marker_pose_batch.led_positions_batch`), Tsai's calibration
+(:func:`twin.instruments.marker_pose.led_positions_batch`), Tsai's calibration
 (:func:`calib.tsai_lm.calibrate_tsai_batch`, from the visit's noise-free calibration)
 and the Table III metrics (:mod:`calib.metrics`). The positioning numbers are the
 scalar code's bit for bit, the calibrations its own to a small fraction of their standard
@@ -44,7 +44,8 @@ from twin.batch.estimators import (
     found,
     slot_rows,
 )
-from twin.instruments.marker_pose_batch import MarkerPoseBatch, led_positions_batch
+from twin.instruments.marker_pose import MarkerPose as MarkerPoseBatch
+from twin.instruments.marker_pose import led_positions_batch
 from twin.localization.input_checks import ConvergenceWarning
 from twin.localization.observation_batch import ChildObservationBatch, observe_child_batch
 from twin.localization.sequence_batch import CpsBatch

@@ -12,6 +12,6 @@ Modules, one job each (pure numpy/scipy, shared by the simulated and the real in
 - :mod:`.consistency`: chi-square consistency tests at a chosen false-alarm rate.
 - :mod:`.shot`: one complete simulated shot, and a vectorised batch of shots.
 - :mod:`.marker`, :mod:`.marker_pose`: the cube/LED assembly, its pose from three cubes,
-  LED positions and covariance, and the chi-square of the cubes against the assembly.
-- :mod:`.marker_pose_batch`: the same over arrays of Monte Carlo trials.
+  LED positions and covariance, and the chi-square of the cubes against the assembly,
+  for one fit or over arrays of Monte Carlo trials.
 """

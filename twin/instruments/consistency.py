@@ -52,9 +52,7 @@ def chi2_threshold(dof: int, false_alarm_rate: float) -> float:
 
 def chi2_statistic(residual: ArrayLike, covariance: ArrayLike) -> float:
     """``e^T (C + floor^2 I)^-1 e`` for a (k,) residual and its (k, k) covariance."""
-    e = np.asarray(residual, dtype=float)
-    c = np.asarray(covariance, dtype=float) + NUMERICAL_FLOOR**2 * np.eye(e.size)
-    return float(e @ np.linalg.solve(c, e))
+    return float(chi2_statistic_batch(residual, covariance))
 
 
 def raise_if_inconsistent(
@@ -88,12 +86,12 @@ def chi2_statistic_batch(residuals: ArrayLike, covariances: ArrayLike) -> NDArra
     """:func:`chi2_statistic` of (..., k) residuals with their (..., k, k) covariances -> (...,).
 
     Each statistic is computed from its own residual and covariance alone (the same
-    arithmetic as :func:`chi2_statistic`, one small solve per statistic).
+    arithmetic for any trial axes, one small solve per statistic).
     """
     e = np.asarray(residuals, dtype=float)
     k = e.shape[-1]
     c = np.asarray(covariances, dtype=float) + NUMERICAL_FLOOR**2 * np.eye(k)
-    return np.sum(e * np.linalg.solve(c, e[..., None])[..., 0], axis=-1)
+    return np.vecdot(e, np.linalg.solve(c, e[..., None])[..., 0])
 
 
 def exceeds_threshold(

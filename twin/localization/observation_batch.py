@@ -5,7 +5,7 @@ reference point (T, 3) in the parent's levelled frame and its (T, 3, 3) covarian
 :func:`observe_child_batch` builds it from the three cube shots of each trial as
 :func:`twin.localization.observation.observe_child` does (covariance of the shots from
 :func:`twin.instruments.noise.cartesian_covariance`, marker pose and its chi-square from
-:func:`twin.instruments.marker_pose_batch.fit_marker_pose_batch`, centroid and its
+:func:`twin.instruments.marker_pose.fit_marker_pose_batch`, centroid and its
 covariance), without a Python object per trial. Where the scalar function raises
 :class:`InconsistentMarkerError`, the batch keeps the trial and
 :meth:`ChildObservationBatch.marker_inconsistent` flags it: the caller counts the flags.
@@ -20,8 +20,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, exceeds_threshold
 from twin.instruments.marker import MarkerAssembly
-from twin.instruments.marker_pose_batch import (
-    MarkerPoseBatch,
+from twin.instruments.marker_pose import MarkerPose as MarkerPoseBatch
+from twin.instruments.marker_pose import (
     check_cubes_batch,
     cube_centroid_batch,
     fit_marker_pose_batch,
