@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.distortion import distort
+from calib.distortion import distortion_scale
 
 
 def _leading(value: float | NDArray[np.float64]) -> NDArray[np.float64]:
@@ -55,7 +55,7 @@ def project_tsai_jacobian(
     ru2 = xu * xu + yu * yu
     t = kb * ru2
     r_u = np.sqrt(np.maximum(ru2, 0))
-    s = distort(r_u[..., None], kb)[..., 0]
+    s = r_u * distortion_scale(kb * (r_u * r_u))  # the distorted radius
     s = np.where(ru2 > 0, s / np.sqrt(np.where(ru2 > 0, ru2, 1.0)), 1.0)
     ds_dt = -(s**3) / (1.0 + 3.0 * t * s * s)
     xd, yd = s * xu, s * yu
@@ -83,13 +83,19 @@ def project_tsai_jacobian(
     a = np.stack([np.stack([a11, a12], -1), np.stack([a21, a22], -1)], -2) * fb[..., None, None]
     a[..., 0, :] *= sxb[..., None]
     duv_dpc = a @ dn_dpc  # (..., N, 2, 3)
-    # pc = R (X - C): d pc / d C = -R ; d pc / d rot = -R skew(v) drot
-    rot = world2cam_r[..., None, :, :]
-    jac[..., 8:11] = -duv_dpc @ rot
+    # pc = R (X - C): d pc / d C = -R ; d pc / d rot = -R skew(v) drot. A product with a
+    # matrix shared by the N points is one product of (..., 2N, 3) rows (the same sums).
+    lead, n = pc.shape[:-2], pc.shape[-2]
+
+    def times(rows: NDArray[np.float64], m: NDArray[np.float64]) -> NDArray[np.float64]:
+        return (rows.reshape(*lead, 2 * n, 3) @ m).reshape(*lead, n, 2, 3)
+
+    duv_dc = times(-duv_dpc, world2cam_r)
+    jac[..., 8:11] = duv_dc
     sk = np.zeros((*v.shape, 3))
     sk[..., 0, 1], sk[..., 0, 2] = -v[..., 2], v[..., 1]
     sk[..., 1, 0], sk[..., 1, 2] = v[..., 2], -v[..., 0]
     sk[..., 2, 0], sk[..., 2, 1] = -v[..., 1], v[..., 0]
-    jac[..., 5:8] = -(duv_dpc @ rot) @ sk @ drot[..., None, :, :]
+    jac[..., 5:8] = times(duv_dc @ sk, drot)
     uv = np.stack([sxb * xd + _leading(cx), yd + _leading(cy)], axis=-1)
     return uv, jac
