@@ -80,8 +80,9 @@ def project_tsai_jacobian(
     dn_dpc[..., 1, 1] = zi
     dn_dpc[..., 1, 2] = -yn * zi
     # d(u, v) / d(xn, yn) = diag(sx, 1) @ A @ f
-    a = np.stack([np.stack([a11, a12], -1), np.stack([a21, a22], -1)], -2) * fb[..., None, None]
-    a[..., 0, :] *= sxb[..., None]
+    a = np.empty((*pc.shape[:-1], 2, 2))
+    a[..., 0, 0], a[..., 0, 1] = sxb * (a11 * fb), sxb * (a12 * fb)
+    a[..., 1, 0], a[..., 1, 1] = a21 * fb, a22 * fb
     duv_dpc = a @ dn_dpc  # (..., N, 2, 3)
     # pc = R (X - C): d pc / d C = -R ; d pc / d rot = -R skew(v) drot. A product with a
     # matrix shared by the N points is one product of (..., 2N, 3) rows (the same sums).
