@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from twin.instruments.aim import LineOfSight, auto_aim
-from twin.instruments.noise import add_polar_noise, quantise_polar
+from twin.instruments.noise import normalise_polar, polar_sigmas, quantise_polar
 from twin.instruments.polar import (
     TotalStationMeasurement,
     cartesian2polar,
@@ -29,7 +29,6 @@ from twin.instruments.tilt import (
     TiltReading,
     level_points,
     read_inclinometer,
-    sample_tilt_readings,
 )
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
@@ -48,15 +47,52 @@ class SimulatedShot:
     prism_index: int
 
 
-def _measure_with_readings(
-    points_instrument: NDArray[np.float64],
-    readings: NDArray[np.float64],
+def levelled_shots(
+    points_instrument: ArrayLike,
+    readings: ArrayLike,
     spec: TotalStationSpec,
-    rng: np.random.Generator,
+    normals: ArrayLike,
 ) -> NDArray[np.float64]:
-    noisy = add_polar_noise(cartesian2polar(points_instrument), spec, rng)
-    levelled = level_points(polar2cartesian(noisy), readings[..., 0], readings[..., 1])
+    """Shots at known prisms from given noise: measure in I, level, round.
+
+    Args:
+        points_instrument: (..., 3) true prism positions in the instrument frame, m.
+        readings: (..., 2) the (roll, pitch) readings that level each shot, rad.
+        spec: instrument specification.
+        normals: (..., 3) standard normal draws of each shot's (d, hz, v) noise.
+
+    Returns:
+        (..., 3) levelled, rounded polar triplets (d, hz, v).
+    """
+    polar = cartesian2polar(np.asarray(points_instrument, dtype=float))
+    noisy = normalise_polar(polar + polar_sigmas(polar, spec) * normals)
+    r = np.asarray(readings, dtype=float)
+    levelled = level_points(polar2cartesian(noisy), r[..., 0], r[..., 1])
     return quantise_polar(cartesian2polar(levelled), spec)
+
+
+def shots_from_normals(
+    points_instrument: ArrayLike,
+    true_tilt: ArrayLike,
+    spec: TotalStationSpec,
+    inclinometer: InclinometerSpec,
+    normals: ArrayLike,
+    tilt_normals: ArrayLike,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`measure_points` with its noise given: the caller draws it, in its own order.
+
+    Args:
+        points_instrument: (..., 3) true prism positions in the instrument frame, m.
+        true_tilt: (..., 2) the true (roll, pitch), rad.
+        spec, inclinometer: instrument and inclination-sensor specifications.
+        normals: (..., 3) standard normal draws of the polar noise.
+        tilt_normals: (..., 2) standard normal draws of the inclination readings.
+
+    Returns:
+        ``(polar, readings)`` as :func:`measure_points`.
+    """
+    readings = np.asarray(true_tilt, dtype=float) + inclinometer.sigma * np.asarray(tilt_normals)
+    return levelled_shots(points_instrument, readings, spec, normals), readings
 
 
 def measure_points(
@@ -83,8 +119,11 @@ def measure_points(
     shape = p.shape[:-1]
     roll = np.broadcast_to(np.asarray(true_roll, float), shape)
     pitch = np.broadcast_to(np.asarray(true_pitch, float), shape)
-    readings = sample_tilt_readings(roll, pitch, inclinometer, rng)
-    return _measure_with_readings(p, readings, spec, rng), readings
+    tilt_normals = rng.standard_normal((*shape, 2))  # the readings first, as the instrument
+    normals = rng.standard_normal(p.shape)
+    return shots_from_normals(
+        p, np.stack([roll, pitch], -1), spec, inclinometer, normals, tilt_normals
+    )
 
 
 def simulate_shot(
@@ -136,6 +175,6 @@ def simulate_shot(
         pointing = aim
     index = auto_aim(prisms, pointing, spec, line_of_sight)
     noise = rng if measurement_rng is None else measurement_rng(index)
-    polar = _measure_with_readings(prisms[index], readings, spec, noise)
+    polar = levelled_shots(prisms[index], readings, spec, noise.standard_normal(3))
     measurement = TotalStationMeasurement.from_polar(polar, float(timestamp), tilt=reading)
     return SimulatedShot(measurement=measurement, prism_index=index)
