@@ -37,7 +37,7 @@ from rich.console import Console
 from rich.table import Table
 
 from twin.batch.execute import BatchRun
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 from twin.montecarlo import run_montecarlo
 from twin.montecarlo.compare import rms_ratio
 from twin.scenario import load_scenario

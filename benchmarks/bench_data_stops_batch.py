@@ -25,7 +25,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from twin.batch.plan import Point, record_plan
+from twin.batch.steps import Point, record_plan
 from twin.montecarlo import run_montecarlo
 from twin.scenario import load_scenario
 from twin.scenario.overrides import with_values

@@ -26,7 +26,7 @@ from rich.table import Table
 import twin.sim  # noqa: F401  # isort: skip
 from twin.batch.execute import BatchRun
 from twin.batch.network import adjust_trials
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 from twin.localization.adjustment import adjust_network
 from twin.scenario import load_scenario
 from twin.scenario.overrides import with_values

@@ -13,7 +13,7 @@ import pytest
 import twin.sim  # noqa: F401  (headless rendering before mujoco)
 from calib.detection.sequence import SwitchingSequence
 from twin.batch.execute import BatchRun
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 from twin.hal.led_sensing import ImageLedSensor
 from twin.hal.readings import LedObservation
 from twin.instruments.noise import polar_sigmas

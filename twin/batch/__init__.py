@@ -1,8 +1,2 @@
-"""The batch fidelity: the campaign's plan executed for many trials at once.
-
-- :mod:`.plan`: :func:`record_plan`, the campaign as its strategy plays it without noise.
-- :mod:`.execute`: :class:`BatchRun`, the plan for T trials, noise and estimates as arrays.
-- :mod:`.estimators`: the campaign's estimators over trials; :class:`TrialByTrial` runs the
-  scalar code on each trial in turn (the reference).
-- :mod:`.vectorised`: :class:`Vectorised`, the same estimators as array code (the default).
-"""
+"""The batch fidelity: the campaign's recorded steps replayed for many trials at once, every
+measurement and estimate an array over the trials (:class:`twin.batch.execute.BatchRun`)."""

@@ -1,46 +1,48 @@
-"""The campaign's estimators over the trials of a batch: what the campaign computes from one
-trial's measurements, for T trials.
+"""The campaign's estimators over the trials of a batch, as array code: what the campaign
+computes from one trial's measurements, for T trials at once.
 
-:class:`Estimators` is what the batch executor (:mod:`twin.batch.execute`) needs of them:
+- :func:`observe`: a child's reference point, its covariance and its marker's pose from
+  three levelled cube shots (:func:`twin.localization.observation_batch.observe_child_batch`);
+- :func:`leds`: a stop's LED positions from its marker's pose
+  (:func:`twin.instruments.marker_pose.led_positions_batch`);
+- :func:`calibrate`, :func:`evaluate`, :func:`truth_errors`: Tsai's calibration of a visit
+  (:func:`calib.tsai_lm.calibrate_tsai_batch`, from the visit's noise-free calibration)
+  and the Table III metrics (:mod:`calib.metrics`);
+- :func:`points_effect`: the calibrated camera's error from its points' errors.
 
-- :meth:`Estimators.observe`: a child's reference point, its covariance and its marker's
-  pose from three levelled cube shots (:func:`twin.localization.observation.observe_child`);
-- :meth:`Estimators.cps`: the group's CPS state (:class:`twin.localization.sequence.
-  CpsSequence`): children placed, the parent's pose solved;
-- :meth:`Estimators.leds`: a stop's LED positions from its marker's pose
-  (:func:`twin.instruments.marker_pose.led_positions`);
-- :meth:`Estimators.calibrate`, :meth:`Estimators.evaluate`: Tsai's calibration of a visit
-  and the Table III metrics (:func:`calib.tsai.calibrate_tsai`, :func:`calib.evaluate`).
+The CPS state is :class:`twin.localization.sequence_batch.CpsBatch` itself. The positioning
+numbers are the campaign's scalar code's bit for bit, the calibrations scipy's
+(:func:`calib.calibrate_tsai`) to a small fraction of their standard deviations (the tests
+hold them to it); no trial's numbers depend on the other trials of its batch.
 
-:class:`TrialByTrial` runs the scalar code of the campaign on each trial in turn: slow, and
-the reference the vectorised estimators are held to.
+Trials that gave up stops calibrate on fewer points: trials are fitted in groups of the
+same number of points (:func:`by_count`). A trial the batched fit does not bring to
+convergence from the visit's noise-free calibration (its solution lies far from it: a long
+route's drift moves the world frame) is calibrated as the campaign does, by
+:func:`calib.calibrate_tsai` from its closed-form stages.
 """
 
 from __future__ import annotations
 
-import abc
-import copy
-from collections.abc import Iterator, Sequence
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from calib import calibrate_tsai, evaluate
+from calib import calibrate_tsai
 from calib.camera import TsaiCamera, TsaiCameras
-from calib.metrics import pose_errors
-from calib.point_errors import covariance_from_point_errors
+from calib.checks import DegenerateGeometryWarning, InputWarning
+from calib.metrics import errors_3d_batch, pixel_errors_batch, pose_errors
+from calib.point_errors import position_covariance_from_blocks
 from calib.rotation import rot_z
-from twin.instruments.consistency import chi2_threshold
+from calib.tsai import FULL_MIN_POINTS
+from calib.tsai_lm import TsaiBatchResult, calibrate_tsai_batch
 from twin.instruments.marker import MarkerAssembly
-from twin.instruments.marker_pose import MARKER_DOF, MarkerPose, cube_centroid, fit_marker_pose
-from twin.instruments.marker_pose import led_positions as scalar_led_positions
-from twin.instruments.noise import cartesian_covariance
-from twin.instruments.polar import polar2cartesian
+from twin.instruments.marker_pose import MarkerPose, led_positions_batch
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
-from twin.localization.input_checks_batch import block_diagonal
-from twin.localization.observation import ChildObservation
-from twin.localization.sequence import CpsSequence
+from twin.localization.observation_batch import observe_child_batch
 
 
 @dataclass(frozen=True)
@@ -82,41 +84,6 @@ class ParentEstimates:
         shape = points.shape
         flat = points.reshape(len(self.yaw), -1, 3)
         return (np.einsum("tij,tkj->tki", r, flat) + self.translation[:, None, :]).reshape(shape)
-
-
-class CpsStates(abc.ABC):
-    """The CPS state of T trials."""
-
-    @abc.abstractmethod
-    def children_moved(self, child: str, observations: Observations) -> None:
-        """A child moved; the standing parent measured it (place it in W)."""
-
-    @abc.abstractmethod
-    def parent_moved(self, observations: Sequence[tuple[str, Observations]]) -> NDArray[np.bool_]:
-        """The parent moved and measured these children; solve its pose. Returns (T,) which
-        trials failed the consistency test (their solution is kept)."""
-
-    @property
-    @abc.abstractmethod
-    def parent(self) -> ParentEstimates:
-        """The parent's current estimate."""
-
-    @abc.abstractmethod
-    def child_position(self, child: str) -> NDArray[np.float64]:
-        """(T, 3) a child's reference point in W, m."""
-
-    @abc.abstractmethod
-    def on_rows(self, rows: NDArray[np.intp]) -> CpsStates:
-        """The states of the trials ``rows`` (R,): its steps change these states only once
-        :meth:`put_rows` writes them back."""
-
-    @abc.abstractmethod
-    def put_rows(self, rows: NDArray[np.intp], part: CpsStates) -> None:
-        """Take the trials ``rows`` from ``part`` (:meth:`on_rows` of the same rows)."""
-
-    @abc.abstractmethod
-    def reset_rows(self, rows: NDArray[np.intp]) -> None:
-        """Start the trials ``rows`` again: the parent at W's origin, no child placed."""
 
 
 @dataclass(frozen=True)
@@ -172,91 +139,89 @@ def slot_rows(rows: NDArray[np.intp], slots: NDArray[np.intp] | None) -> NDArray
     return coordinate_rows(rows if slots is None else np.asarray(slots)[rows])
 
 
-class Estimators(abc.ABC):
-    """What the batch executor needs to estimate, for T trials at once (see the module)."""
+def observe(
+    polar: NDArray[np.float64],
+    spec: TotalStationSpec,
+    inclinometer: InclinometerSpec | None,
+    marker: MarkerAssembly,
+    false_alarm_rate: float | None,
+) -> Observations:
+    """A child's observations from (T, 3, 3) levelled polar shots at its three cubes."""
+    obs = observe_child_batch("child", polar, spec, inclinometer, marker=marker)
+    pose = obs.marker_pose
+    assert pose is not None
+    return Observations(
+        obs.point_level,
+        obs.covariance,
+        pose.rotation,
+        pose.translation,
+        pose.covariance,
+        obs.marker_inconsistent(false_alarm_rate),
+    )
 
-    @abc.abstractmethod
-    def observe(
-        self,
-        polar: NDArray[np.float64],
-        spec: TotalStationSpec,
-        inclinometer: InclinometerSpec | None,
-        marker: MarkerAssembly,
-        false_alarm_rate: float | None,
-    ) -> Observations:
-        """A child's observations from (T, 3, 3) levelled polar shots at its three cubes."""
 
-    @abc.abstractmethod
-    def cps(
-        self,
-        trials: int,
-        children: Sequence[str],
-        solver: str,
-        false_alarm_rate: float | None,
-        child_creep: float = 0.0,
-    ) -> CpsStates:
-        """A new CPS state for ``trials`` trials (the parent at W's origin); ``child_creep``
-        as :class:`twin.localization.sequence.CpsSequence`'s, m."""
+def leds(
+    observations: Observations, marker: MarkerAssembly
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(T, N_led, 3) LED positions in the levelled frame and their (T, 3N, 3N) covariance
+    from the marker's pose."""
+    pose = MarkerPose(
+        observations.rotation,
+        observations.translation,
+        observations.pose_covariance,
+        np.zeros(len(observations.point)),
+        None,
+    )
+    return led_positions_batch(pose, marker)
 
-    @abc.abstractmethod
-    def leds(
-        self, observations: Observations, marker: MarkerAssembly
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(T, N_led, 3) LED positions in the levelled frame and their (T, 3N, 3N)
-        covariance from the marker's pose."""
 
-    @abc.abstractmethod
-    def calibrate(
-        self,
-        points: NDArray[np.float64],
-        pixels: NDArray[np.float64],
-        image_size: tuple[int, int],
-        start: TsaiCamera,
-    ) -> Calibrations:
-        """Tsai's calibration of (T, N, 3) points and (T, N, 2) pixels (NaN rows are
-        points a trial did not measure: :func:`found`)."""
-
-    @abc.abstractmethod
-    def evaluate(
-        self,
-        calibrations: Calibrations,
-        points: NDArray[np.float64],
-        pixels: NDArray[np.float64],
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(T,) mean pixel error, px, and (T,) mean 3D error, m, of each trial's camera on
-        its (T, M, 3) points and (T, M, 2) pixels (NaN where not calibrated)."""
-
-    @abc.abstractmethod
-    def points_effect(
-        self,
-        calibrations: Calibrations,
-        points: NDArray[np.float64],
-        stops: NDArray[np.float64],
-        slots: NDArray[np.intp] | None = None,
-        shared: NDArray[np.float64] | None = None,
-    ) -> NDArray[np.float64]:
-        """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of
-        its (T, n, 3) points (NaN where not calibrated), to first order at the calibrated
-        camera (:func:`calib.point_errors.covariance_from_point_errors`).
-
-        The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its
-        LEDs share the marker's measured pose), in a layout of S k / 3 points: ``slots``
-        (n,) says where each point sits in it (default: the first n, in order; a stop that
-        shows only some LEDs leaves the others' rows out of the data); plus ``S S^T`` for
-        the (T, S k, M) ``shared`` loadings of the layout on errors common to its stops (a
-        child's marker survey: :func:`twin.instruments.marker_pose.survey_layout`)."""
-
-    def truth_errors(
-        self, calibrations: Calibrations, truth: TsaiCamera
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(T,) position error, m, and (T,) rotation error, rad, against the true camera
-        (NaN where not calibrated)."""
-        errors = pose_errors(calibrations.cameras, truth)
-        failed = ~calibrations.calibrated
-        return (
-            np.where(failed, np.nan, errors.position_m),
-            np.where(failed, np.nan, errors.rotation_rad),
-        )
+def calibrate(
+    points: NDArray[np.float64],
+    pixels: NDArray[np.float64],
+    image_size: tuple[int, int],
+    start: TsaiCamera,
+) -> Calibrations:
+    """Tsai's calibration of (T, N, 3) points and (T, N, 2) pixels from the visit's
+    noise-free calibration ``start`` (NaN rows are points a trial did not measure:
+    :func:`found`)."""
+    t = len(points)
+    kept = found(points, pixels)
+    internal = {
+        name: np.repeat(np.asarray(getattr(start, name), float)[None], t, axis=0)
+        for name in ("f", "cx", "cy", "kappa1", "sx", "world2cam_r", "position")
+    }
+    position = np.full((t, 3), np.nan)
+    std = np.full((t, 3), np.nan)
+    sigma = np.full(t, np.nan)
+    for trials, rows in by_count(kept):
+        if rows.shape[1] < FULL_MIN_POINTS:
+            continue  # too few points: not calibrated
+        idx = trials[:, None]
+        result = calibrate_tsai_batch(points[idx, rows], pixels[idx, rows], image_size, start)
+        # A fit that wandered off (f or sx not positive) did not converge either.
+        q = result.q
+        ok = result.converged & np.isfinite(q).all(axis=1) & (q[:, 0] > 0) & (q[:, 3] > 0)
+        cams = _select(result, np.flatnonzero(ok))
+        for name in internal:
+            internal[name][trials[ok]] = getattr(cams, name)
+        position[trials[ok]] = result.position[ok]
+        std[trials[ok]] = result.std[ok, 8:11]
+        sigma[trials[ok]] = result.sigma_px[ok]
+        # A trial whose solution lies far from the start (a long route's drift moves
+        # the world frame) is calibrated as the campaign does, from closed-form stages.
+        for k in trials[~ok]:
+            with warnings.catch_warnings():
+                # Its warnings about the data are the campaign's to give, not a chunk's.
+                warnings.simplefilter("ignore", InputWarning)
+                warnings.simplefilter("ignore", DegenerateGeometryWarning)
+                one = calibrate_one(points[k][kept[k]], pixels[k][kept[k]], image_size)
+            if one is not None:
+                cam, position[k], std[k], sigma[k] = one
+                for name in internal:
+                    internal[name][k] = getattr(cam, name)
+    cameras = TsaiCameras(**internal, image_size=start.image_size)
+    made = np.isfinite(position).all(axis=1)
+    return Calibrations(cameras, position, std, sigma, made, kept)
 
 
 def calibrate_one(
@@ -275,150 +240,89 @@ def calibrate_one(
     return cam, cam.position, np.array([s["x"], s["y"], s["z"]]), result.sigma_px
 
 
-# -- the reference: the campaign's scalar code, trial by trial -------------------------------------
-class _ScalarCps(CpsStates):
-    def __init__(
-        self,
-        trials: int,
-        children: Sequence[str],
-        solver: str,
-        rate: float | None,
-        creep: float = 0.0,
-    ):
-        self.rate, self.creep = rate, creep
-        # The consistency test is made here, not by the sequence: a trial that fails it
-        # keeps its solution (the campaign would measure again; the batch counts it).
-        self.sequences = [
-            CpsSequence(list(children), solver=solver, false_alarm_rate=None, child_creep=creep)
-            for _ in range(trials)
-        ]
-
-    def children_moved(self, child: str, observations: Observations) -> None:
-        for k, seq in enumerate(self.sequences):
-            seq.children_moved([_observation(child, observations, k)])
-
-    def parent_moved(self, observations: Sequence[tuple[str, Observations]]) -> NDArray[np.bool_]:
-        flags = np.zeros(len(self.sequences), dtype=bool)
-        for k, seq in enumerate(self.sequences):
-            step = seq.parent_moved([_observation(child, o, k) for child, o in observations])
-            solution = step.solution
-            if self.rate is not None and solution is not None and solution.chi2 is not None:
-                flags[k] = solution.chi2 > chi2_threshold(solution.dof, self.rate)
-        return flags
-
-    @property
-    def parent(self) -> ParentEstimates:
-        poses = [s.parent for s in self.sequences]
-        return ParentEstimates(
-            np.array([p.yaw for p in poses]),
-            np.array([p.translation for p in poses]),
-            np.array([p.covariance for p in poses]),
+def evaluate(
+    calibrations: Calibrations, points: NDArray[np.float64], pixels: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(T,) mean pixel error, px, and (T,) mean 3D error, m, of each trial's camera on its
+    (T, M, 3) points and (T, M, 2) pixels (NaN where not calibrated)."""
+    kept = found(points, pixels) & calibrations.calibrated[:, None]
+    # Points a trial did not measure stand in as zeros and leave the means.
+    pts = np.where(kept[..., None], points, 0.0)
+    pix = np.where(kept[..., None], pixels, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = kept.sum(axis=1)
+        pixel = np.where(kept, pixel_errors_batch(calibrations.cameras, pts, pix), 0.0)
+        error = np.where(kept, errors_3d_batch(calibrations.cameras, pts, pix), 0.0)
+        return (
+            np.where(n > 0, pixel.sum(axis=1) / n, np.nan),
+            np.where(n > 0, error.sum(axis=1) / n, np.nan),
         )
 
-    def child_position(self, child: str) -> NDArray[np.float64]:
-        return np.array([s.child_position(child)[0] for s in self.sequences])
 
-    def on_rows(self, rows: NDArray[np.intp]) -> CpsStates:
-        part = copy.copy(self)
-        part.sequences = [self.sequences[k] for k in rows]  # stepped in place
-        return part
+def points_effect(
+    calibrations: Calibrations,
+    points: NDArray[np.float64],
+    stops: NDArray[np.float64],
+    slots: NDArray[np.intp] | None = None,
+    shared: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """(T, 3, 3) covariance of each calibrated camera's centre, m^2, from the errors of its
+    (T, n, 3) points (NaN where not calibrated), to first order at the calibrated camera
+    (:func:`calib.point_errors.position_covariance_from_blocks`).
 
-    def put_rows(self, rows: NDArray[np.intp], part: CpsStates) -> None:
-        pass  # the sequences of ``part`` are this batch's own
-
-    def reset_rows(self, rows: NDArray[np.intp]) -> None:
-        first = self.sequences[0]
-        for k in rows:
-            self.sequences[k] = CpsSequence(
-                list(first.children),
-                solver=first.solver,
-                false_alarm_rate=None,
-                child_creep=self.creep,
+    The points' joint covariance is block-diagonal, one (T, S, k, k) block a stop (its LEDs
+    share the marker's measured pose), in a layout of S k / 3 points: ``slots`` (n,) says
+    where each point sits in it (default: the first n, in order; a stop that shows only
+    some LEDs leaves the others' rows out of the data); plus ``S S^T`` for the (T, S k, M)
+    ``shared`` loadings of the layout on errors common to its stops (a child's marker
+    survey: :func:`twin.instruments.marker_pose.survey_layout`)."""
+    out = np.full((len(points), 3, 3), np.nan)
+    for trials, rows in by_count(calibrations.kept & calibrations.calibrated[:, None]):
+        if rows.shape[1] > 0:  # else not calibrated
+            out[trials] = position_covariance_from_blocks(
+                _select(calibrations.cameras, trials),
+                points[trials[:, None], rows],
+                stops[trials],
+                slot_rows(rows, slots),
+                None if shared is None else shared[trials],
             )
+    return out
 
 
-def _observation(child: str, o: Observations, k: int) -> ChildObservation:
-    return ChildObservation(child, o.point[k], o.covariance[k])
+def truth_errors(
+    calibrations: Calibrations, truth: TsaiCamera
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(T,) position error, m, and (T,) rotation error, rad, against the true camera
+    (NaN where not calibrated)."""
+    errors = pose_errors(calibrations.cameras, truth)
+    failed = ~calibrations.calibrated
+    return (
+        np.where(failed, np.nan, errors.position_m),
+        np.where(failed, np.nan, errors.rotation_rad),
+    )
 
 
-class TrialByTrial(Estimators):
-    """The campaign's own scalar estimators, run on each trial in turn (the reference)."""
-
-    def observe(self, polar, spec, inclinometer, marker, false_alarm_rate) -> Observations:
-        cubes = polar2cartesian(polar)
-        cov = cartesian_covariance(polar, spec, inclinometer)
-        limit = np.inf if false_alarm_rate is None else chi2_threshold(MARKER_DOF, false_alarm_rate)
-        out = {k: [] for k in ("point", "covariance", "rotation", "translation", "pose", "bad")}
-        for k in range(len(polar)):
-            pose = fit_marker_pose(cubes[k], marker, cov[k])
-            point, point_cov = cube_centroid(cubes[k], cov[k])
-            out["point"].append(point)
-            out["covariance"].append(point_cov)
-            out["rotation"].append(pose.rotation)
-            out["translation"].append(pose.translation)
-            out["pose"].append(pose.covariance)
-            out["bad"].append(bool(pose.chi2 is not None and pose.chi2 > limit))
-        return Observations(
-            np.array(out["point"]),
-            np.array(out["covariance"]),
-            np.array(out["rotation"]),
-            np.array(out["translation"]),
-            np.array(out["pose"]),
-            np.array(out["bad"]),
+def _select(cameras: TsaiCameras | TsaiBatchResult, trials: NDArray[np.intp]) -> TsaiCameras:
+    """The cameras of some trials (of a batch of cameras or of calibrations)."""
+    if isinstance(cameras, TsaiBatchResult):
+        q, values = cameras.q[trials], cameras.values[trials]
+        return TsaiCameras(
+            q[:, 0],
+            q[:, 1],
+            q[:, 2],
+            values[:, 4],
+            q[:, 3],
+            cameras.world2cam_r[trials],
+            q[:, 8:11],
+            cameras.image_size,
         )
-
-    def cps(self, trials, children, solver, false_alarm_rate, child_creep=0.0) -> CpsStates:
-        return _ScalarCps(trials, children, solver, false_alarm_rate, child_creep)
-
-    def leds(self, observations, marker):
-        leds, covs = [], []
-        for k in range(len(observations.point)):
-            pose = MarkerPose(
-                observations.rotation[k],
-                observations.translation[k],
-                observations.pose_covariance[k],
-                0.0,
-            )
-            led, cov = scalar_led_positions(pose, marker)
-            leds.append(led)
-            covs.append(cov)
-        return np.array(leds), np.array(covs)
-
-    def calibrate(self, points, pixels, image_size, start) -> Calibrations:
-        kept = found(points, pixels)
-        cameras: list[TsaiCamera] = []
-        position = np.full((len(points), 3), np.nan)
-        std = np.full((len(points), 3), np.nan)
-        sigma = np.full(len(points), np.nan)
-        for k in range(len(points)):
-            one = calibrate_one(points[k][kept[k]], pixels[k][kept[k]], image_size)
-            if one is None:
-                cameras.append(start)
-                continue
-            cam, position[k], std[k], sigma[k] = one
-            cameras.append(cam)
-        made = np.isfinite(position).all(axis=1)
-        return Calibrations(TsaiCameras.from_cameras(cameras), position, std, sigma, made, kept)
-
-    def evaluate(self, calibrations, points, pixels):
-        pix = np.full(len(points), np.nan)
-        err = np.full(len(points), np.nan)
-        kept = found(points, pixels)
-        for k in np.flatnonzero(calibrations.calibrated & kept.any(axis=1)):
-            m = evaluate(calibrations.cameras.camera(k), points[k][kept[k]], pixels[k][kept[k]])
-            pix[k], err[k] = m.pixel.mean, m.error_3d.mean
-        return pix, err
-
-    def points_effect(self, calibrations, points, stops, slots=None, shared=None):
-        out = np.full((len(points), 3, 3), np.nan)
-        for k in np.flatnonzero(calibrations.calibrated):
-            rows = np.flatnonzero(calibrations.kept[k])
-            cols = slot_rows(rows[None], slots)[0]
-            joint = block_diagonal(stops[k : k + 1])[0]
-            if shared is not None:
-                joint = joint + shared[k] @ shared[k].T
-            cov = covariance_from_point_errors(
-                calibrations.cameras.camera(k), points[k][rows], joint[np.ix_(cols, cols)]
-            )
-            out[k] = cov[8:11, 8:11]
-        return out
+    return TsaiCameras(
+        cameras.f[trials],
+        cameras.cx[trials],
+        cameras.cy[trials],
+        cameras.kappa1[trials],
+        cameras.sx[trials],
+        cameras.world2cam_r[trials],
+        cameras.position[trials],
+        cameras.image_size,
+    )

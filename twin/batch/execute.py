@@ -1,25 +1,22 @@
-"""The batch fidelity: a campaign's plan (:mod:`twin.batch.plan`) executed for T trials at
+"""The batch fidelity: a campaign's plan (:mod:`twin.batch.steps`) executed for T trials at
 once, every measurement and every estimate an array over the trials.
 
 Each trial has its own noise, drawn from its own seed in a fixed order (so that a trial
 gives the same result alone or in any batch), and the noise sources of the geometric
 fidelity:
 
-- the robots' stopping error: each drive ends at the goal, moved by the base's error of
-  localisation (where it truly stood against where it believed it stood) and by the
-  scenario's stopping error; the standing children's creep while the parent drives;
-- the marker assemblies' surveying error (each child's own, for the whole trial);
-- the total station's distance, angle and pointing noise in its (tilted) frame, each shot
-  levelled with its own noisy inclination reading, and rounded to the output resolution;
+- the robots' stopping error and the children's creep, the marker assemblies' surveying
+  error, the total station's noise and its inclination readings (:mod:`twin.batch.fleet`);
 - the LED detection noise of the geometric fidelity (``noise.led_detection_px``) and the
   real camera's centroid error (``noise.led_centroid_px``).
 
-The estimators are the campaign's (:mod:`twin.batch.estimators`): marker fits and centroids,
-CPS with its joint covariance and consistency tests, LED positions from the marker's pose,
+The estimators are the campaign's, as array code (:mod:`twin.batch.estimators`): marker
+fits and centroids, CPS with its joint covariance and consistency tests
+(:class:`twin.localization.sequence_batch.CpsBatch`), LED positions from the marker's pose,
 Tsai's calibration of every visit and the Table III metrics.
 
 A data point holds the LEDs the camera found in the noise-free plan (:class:`twin.batch.
-plan.Point`: all of them, or at stops chosen for accuracy those the stop shows);
+steps.Point`: all of them, or at stops chosen for accuracy those the stop shows);
 the LEDs it did not find give no point and no pixel residual.
 
 What the batch leaves out, which the geometric fidelity keeps: decisions taken again under
@@ -40,350 +37,45 @@ plan decision by decision (a CPS leg, a camera's data) and look at the state bet
 
 from __future__ import annotations
 
-import math
+import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from calib.covariance import own_position_variance
 from calib.rotation import rot_z
+from twin.batch.datasets import DataSet, missed
 from twin.batch.estimators import (
-    CpsStates,
-    Estimators,
     Observations,
     ParentEstimates,
+    calibrate,
+    evaluate,
     found,
+    leds,
+    observe,
+    points_effect,
+    truth_errors,
 )
+from twin.batch.fleet import Fleet
 from twin.batch.network import NetworkRecorder
-from twin.batch.plan import (
-    BatchPlan,
-    Calibrate,
-    DataSetDone,
-    Drive,
-    Fix,
-    Place,
-    Point,
-    RobotTruth,
-)
-from twin.batch.vectorised import Vectorised
+from twin.batch.outcome import BatchOutcome, VisitOutcome, transfer_rms
+from twin.batch.row_arrays import ALL, Rows, blank_rows, picked, put, take
+from twin.batch.steps import BatchPlan, Calibrate, DataSetDone, Drive, Fix, Place, Point
+from twin.batch.streams import Draws, draws_needed
 from twin.instruments.marker import MarkerAssembly
-from twin.instruments.marker_pose import survey_layout, survey_loading
-from twin.instruments.noise import normalise_polar, polar_sigmas, quantise_polar
-from twin.instruments.polar import cartesian2polar, polar2cartesian
-from twin.instruments.tilt import level_points, tilt_from_orientation
+from twin.instruments.marker_pose import survey_loading
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.localization.input_checks import ConvergenceWarning
+from twin.localization.observation_batch import ChildObservationBatch
+from twin.localization.sequence_batch import CpsBatch
 from twin.scenario.schema import Noise
 from twin.sim.capture import in_image
 
-BATCH_STREAM = 11
-"""Spawn key of a trial's stream of the batch fidelity's noise."""
-
-CREEP_BATCH_STREAM = 12
-"""Spawn key of a trial's stream of the children's creep (drawn only when there is some)."""
+__all__ = ["BatchOutcome", "BatchRun", "VisitOutcome", "transfer_rms"]
 
 FALSE_ALARM_RATE = 1e-4
 """The consistency tests' false-alarm rate, as the campaign's with a noisy instrument."""
-
-
-class Draws:
-    """Each trial's standard normal draws, handed out in a fixed order.
-
-    Each trial's draws come from its own generator, in blocks; a generator gives the same
-    sequence whatever the blocks, so a trial's noise depends on its seed alone, not on the
-    batch, the chunk, how far ahead the draws were reserved, or which other trials drew
-    at the same time (each trial keeps its own place in its sequence).
-
-    Args:
-        seeds: (T,) the trials' root seeds.
-        count: draws each trial is expected to need (reserved at once; more are drawn as
-            they are needed).
-        stream: the spawn key of the trials' generators (a source with its own stream
-            changes no other source's draws when it is switched on).
-    """
-
-    def __init__(self, seeds: Sequence[int], count: int, stream: int = BATCH_STREAM) -> None:
-        self.stream = stream
-        self._generators = [self._generator(seed) for seed in seeds]
-        self.values = np.zeros((len(seeds), 0))
-        self.used = np.zeros(len(seeds), dtype=np.intp)  # each trial's place in values
-        self._reserve(count)
-
-    def _generator(self, seed: int) -> np.random.Generator:
-        return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(self.stream,)))
-
-    def _reserve(self, count: int) -> None:
-        """Drop the draws taken and draw more: every trial then has ``count`` or more
-        ahead (each trial's own sequence goes on where it stopped)."""
-        left = self.values.shape[1] - self.used
-        width = int(left.max(initial=0)) + count
-        self.values = np.stack(
-            [
-                np.concatenate([row[start:], g.standard_normal(width - ahead)])
-                for row, start, ahead, g in zip(
-                    self.values, self.used, left, self._generators, strict=True
-                )
-            ]
-        ).reshape(len(self._generators), width)
-        self.used = np.zeros(len(self._generators), dtype=np.intp)
-
-    def take(self, *shape: int, rows: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
-        """(T, *shape) the next draws of every trial, or (R, *shape) of the trials
-        ``rows``."""
-        n = math.prod(shape)
-        used = self.used if rows is None else self.used[rows]
-        if len(used) and int(used.max()) + n > self.values.shape[1]:
-            self._reserve(max(n, 4096))
-            used = self.used if rows is None else self.used[rows]
-        start = int(used[0]) if len(used) else 0
-        if rows is None and (used == start).all():
-            out = self.values[:, start : start + n]
-            self.used = self.used + n
-        else:
-            picked = np.arange(len(self.values)) if rows is None else rows
-            out = self.values[picked[:, None], used[:, None] + np.arange(n)]
-            self.used[picked] += n
-        return out.reshape(len(used), *shape)
-
-    def restart(self, rows: NDArray[np.intp], seeds: Sequence[int]) -> None:
-        """Trials ``rows`` start again from ``seeds`` (their first draws next)."""
-        width = self.values.shape[1]
-        for k, seed in zip(rows, seeds, strict=True):
-            self._generators[k] = self._generator(seed)
-            self.values[k] = self._generators[k].standard_normal(width)
-            self.used[k] = 0
-
-
-def draws_needed(plan: BatchPlan, n_leds: int) -> int:
-    """How many normal draws one trial of ``plan`` takes."""
-    per_shot = 3 + 2  # polar noise, inclination reading
-    marker = len(plan.children) * (3 + n_leds) * 3
-    count = marker
-    for step in plan.steps:
-        if isinstance(step, Drive):
-            count += 3
-        elif isinstance(step, Place):
-            count += 3 * per_shot
-        elif isinstance(step, Fix):
-            count += 3 * per_shot * len(step.children)
-        elif isinstance(step, Point):
-            count += 2 * n_leds
-    return count
-
-
-def _compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(T, 3) planar poses a (x) b: b expressed in the frame of a."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    return np.column_stack(
-        [
-            a[:, 0] + c * b[:, 0] - s * b[:, 1],
-            a[:, 1] + s * b[:, 0] + c * b[:, 1],
-            a[:, 2] + b[:, 2],
-        ]
-    )
-
-
-def _inverse(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(T, 3) inverse planar poses."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    return np.column_stack([-(c * a[:, 0] + s * a[:, 1]), s * a[:, 0] - c * a[:, 1], -a[:, 2]])
-
-
-@dataclass
-class _Robot:
-    """A robot in T trials: where it truly stands and where it believes it stands (planar,
-    (T, 3)), and each trial's stop in the noise-free plan (``nominal``: its pose, its
-    marker's cubes and LEDs (a child), its instrument's centre, orientation and tilt (the
-    parent), each (T, ...))."""
-
-    true: NDArray[np.float64]
-    believed: NDArray[np.float64]
-    nominal: dict[str, NDArray[np.float64]]
-    _stops: dict[int, tuple[RobotTruth, dict[str, NDArray[np.float64]]]] = field(
-        default_factory=dict
-    )
-
-    @classmethod
-    def at(cls, truth: RobotTruth, trials: int) -> _Robot:
-        pose = np.repeat(truth.pose[None], trials, axis=0)
-        return cls(pose.copy(), pose.copy(), _nominal(truth, trials))
-
-    def stopped(self, truths: Sequence[RobotTruth], rows: NDArray[np.intp] | slice) -> None:
-        """The trials ``rows`` stopped at ``truths`` (one for all, or one a row)."""
-        stops = [self._stop(t) for t in truths]
-        for name, values in self.nominal.items():
-            values[rows] = stops[0][name] if len(stops) == 1 else [s[name][0] for s in stops]
-
-    def _stop(self, truth: RobotTruth) -> dict[str, NDArray[np.float64]]:
-        """A stop's arrays, (1, ...) each (made once per stop: a plan's stops repeat)."""
-        known = self._stops.get(id(truth))
-        if known is None or known[0] is not truth:
-            known = self._stops[id(truth)] = (truth, _nominal(truth, 1))
-        return known[1]
-
-    def moved(
-        self, points: NDArray[np.float64], rows: NDArray[np.intp] | slice
-    ) -> NDArray[np.float64]:
-        """(R, ..., 3) points of the trials' nominal stops (W) moved with their true poses.
-        The robot's turn is about the vertical through its origin."""
-        true, pose = self.true[rows], self.nominal["pose"][rows]
-        r = rot_z(true[:, 2] - pose[:, 2])
-        flat = points.reshape(len(true), -1, 3).copy()
-        flat[..., :2] -= pose[:, None, :2]
-        out = np.einsum("tij,tkj->tki", r, flat)
-        out[..., :2] += true[:, None, :2]
-        return out.reshape(points.shape)
-
-
-def _nominal(truth: RobotTruth, trials: int) -> dict[str, NDArray[np.float64]]:
-    """A robot's stop as arrays, each repeated for ``trials`` trials."""
-    out = {"pose": truth.pose}
-    if truth.cubes is not None and truth.leds is not None:
-        out["cubes"], out["leds"] = truth.cubes, truth.leds
-    if truth.instrument is not None and truth.instrument2world is not None:
-        out["instrument"], out["orientation"] = truth.instrument, truth.instrument2world
-        out["tilt"] = np.array(tilt_from_orientation(truth.instrument2world))
-    return {k: np.repeat(np.asarray(v, dtype=float)[None], trials, axis=0) for k, v in out.items()}
-
-
-@dataclass
-class BatchOutcome:
-    """What T trials of a plan gave.
-
-    Attributes:
-        calibrations: (camera, visit) -> the visit's calibrations, with its errors (see
-            :class:`VisitOutcome`).
-        parent_error: (T, 3) the parent's final estimate minus its truth, m.
-        parent_covariance: (T, 3, 3) its predicted covariance, m^2.
-        distance: (T,) the parent's travel by its own estimates, m.
-        failures: (T,) consistency tests failed (the geometric fidelity would measure again).
-    """
-
-    calibrations: dict[tuple[str, int], VisitOutcome]
-    parent_error: NDArray[np.float64]
-    parent_covariance: NDArray[np.float64]
-    distance: NDArray[np.float64]
-    failures: NDArray[np.int64]
-
-
-@dataclass
-class VisitOutcome:
-    """A visit's calibration in T trials: (T,) arrays unless said.
-
-    Attributes:
-        points: LED points used (fewer where a trial gave up stops). distance: the
-            parent's travel at the calibration, m.
-        position_error: m. rotation_error: rad (NaN where not calibrated).
-        position_offset: (T, 3) calibrated minus true camera centre in W, m (NaN where not
-            calibrated).
-        world_pixel, world_3d: Table III against the reference set (px, m), NaN without one.
-        local_pixel, local_3d: Table III against the visit's own data (px, m).
-        predicted_transfer, predicted_calibration: the analytic prediction's RMS 3D
-            position error from the parent's pose and from the calibration itself, m.
-        calibrated: whether each trial's calibration succeeded.
-    """
-
-    points: NDArray[np.int64]
-    distance: NDArray[np.float64]
-    position_error: NDArray[np.float64]
-    rotation_error: NDArray[np.float64]
-    position_offset: NDArray[np.float64]
-    world_pixel: NDArray[np.float64]
-    world_3d: NDArray[np.float64]
-    local_pixel: NDArray[np.float64]
-    local_3d: NDArray[np.float64]
-    predicted_transfer: NDArray[np.float64]
-    predicted_calibration: NDArray[np.float64]
-    calibrated: NDArray[np.bool_]
-
-
-@dataclass
-class _DataSet:
-    """A data set's stops in the trials that took it (``rows``; ``alive``: those that have
-    not started again since), in order: each stop's k <= N_led LED points."""
-
-    rows: NDArray[np.intp]
-    alive: NDArray[np.bool_]
-    points: list[NDArray[np.float64]] = field(default_factory=list)  # (R, k, 3) each
-    pixels: list[NDArray[np.float64]] = field(default_factory=list)  # (R, k, 2) each
-    covariances: list[NDArray[np.float64]] = field(default_factory=list)  # (R, 3N_led, 3N_led)
-    leds: list[NDArray[np.intp]] = field(default_factory=list)  # (k,) each: which LEDs
-    children: list[str] = field(default_factory=list)  # each stop's child
-    surveys: list[NDArray[np.float64]] = field(default_factory=list)  # (R, 3N_led, M) each
-    size: int | None = None
-
-    def arrays(self, n: int | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(R, n, 3) points and (R, n, 2) pixels, the first n LED points in order."""
-        if not self.points:
-            return np.zeros((0, 0, 3)), np.zeros((0, 0, 2))
-        pts = np.concatenate(self.points, axis=1)
-        pix = np.concatenate(self.pixels, axis=1)
-        n = pts.shape[1] if n is None else n
-        return pts[:, :n], pix[:, :n]
-
-    def stops(self) -> NDArray[np.float64]:
-        """(R, S, 3N_led, 3N_led) the covariance of each stop's LEDs, all N_led of them
-        (the joint covariance of the data set is block-diagonal: one block a stop)."""
-        return np.stack(self.covariances, axis=1)
-
-    def shared(self) -> NDArray[np.float64] | None:
-        """(R, S 3N_led, C M) the stops' loadings on their children's surveying errors in
-        the layout of :meth:`stops` (None where the assembly is known exactly)."""
-        if not self.covariances:
-            return None
-        return survey_layout(self.children, self.surveys, self.covariances[0].shape[-1])
-
-    def slots(self) -> NDArray[np.intp]:
-        """(n,) where each LED point sits in the layout of :meth:`stops` (S stops of N_led
-        LEDs): ``s N_led + led``; ``arange(n)`` when every stop holds every LED."""
-        if not self.leds:
-            return np.zeros(0, dtype=np.intp)
-        n_led = self.covariances[0].shape[-1] // 3
-        return np.concatenate([s * n_led + leds for s, leds in enumerate(self.leds)])
-
-
-Rows = NDArray[np.intp] | slice
-"""Which trials a step runs for: all of them (``slice(None)``) or an index array."""
-
-ALL: slice = slice(None)
-
-
-def _take(value: Any, rows: NDArray[np.intp]) -> Any:
-    """A dataclass of (T, ...) arrays (or an array) for the trials ``rows`` only."""
-    if isinstance(value, np.ndarray):
-        return value[rows]
-    return replace(value, **{f.name: getattr(value, f.name)[rows] for f in fields(value)})
-
-
-def _put(old: Any, rows: NDArray[np.intp], new: Any, trials: int) -> Any:
-    """``old`` (a dataclass of (T, ...) arrays, an array, or None: blank) with the trials
-    ``rows`` taken from ``new``; a new object, ``old`` is left as it was."""
-    if isinstance(new, np.ndarray):
-        out = _blank(new, trials) if old is None else np.array(old, copy=True)
-        out[rows] = new
-        return out
-    return replace(
-        new,
-        **{
-            f.name: _put(
-                None if old is None else getattr(old, f.name), rows, getattr(new, f.name), trials
-            )
-            for f in fields(new)
-        },
-    )
-
-
-def _blank_rows(value: Any, n: int) -> Any:
-    """A dataclass of arrays like ``value`` for ``n`` trials that have filled nothing."""
-    return replace(value, **{f.name: _blank(getattr(value, f.name), n) for f in fields(value)})
-
-
-def _blank(like: NDArray[Any], trials: int) -> NDArray[Any]:
-    """(T, ...) an array like ``like``'s rows that no trial has filled: NaN, 0 or False."""
-    fill: Any = np.nan if np.issubdtype(like.dtype, np.floating) else 0
-    return np.full((trials, *like.shape[1:]), fill, dtype=like.dtype)
 
 
 class BatchRun:
@@ -404,8 +96,6 @@ class BatchRun:
         led_px: each camera's simulated LED pixel noise by name, px (its detector's and its
             centroid error: :meth:`twin.scenario.Scenario.projected_led_px`); default the
             plan's cameras with ``noise``.
-        estimators: the estimators (default: :class:`twin.batch.vectorised.Vectorised`,
-            the campaign's own as array code).
         record_network: keep what each trial measured for its global adjustment
             (:attr:`network`, :mod:`twin.batch.network`).
 
@@ -420,19 +110,14 @@ class BatchRun:
         plan: BatchPlan,
         seeds: Sequence[int],
         noise: Noise | None = None,
-        estimators: Estimators | None = None,
         led_px: Mapping[str, float] | None = None,
         record_network: bool = False,
     ) -> None:
         self.network = NetworkRecorder() if record_network else None
-        if estimators is None:
-            estimators = Vectorised()
         sc = plan.scenario
         self.plan = plan
         self.trials = len(seeds)
         self.noise = noise if noise is not None else sc.noise
-        self.spec: TotalStationSpec = self.noise.total_station.spec()
-        self.inclinometer: InclinometerSpec = self.noise.inclinometer.spec()
         # The instrument advertises the scenario's full noise: the estimators weigh by it.
         self.advertised: TotalStationSpec = sc.noise.total_station.spec()
         self.advertised_tilt: InclinometerSpec = sc.noise.inclinometer.spec()
@@ -441,23 +126,23 @@ class BatchRun:
             simulated = sc.model_copy(update={"noise": self.noise})
             led_px = {c.name: simulated.projected_led_px(c.name) for c in sc.cameras}
         self.led_px = dict(led_px)
-        self.estimators = estimators
         self.marker: MarkerAssembly = sc.marker.assembly()
         self.n_leds = len(self.marker.leds_body)
         self.seeds = list(seeds)
         self.draws = Draws(seeds, draws_needed(plan, self.n_leds))
-        self._creep_draws: Draws | None = None
+        self.fleet = Fleet(plan, self.noise, self.draws, self.seeds)
+        self.robots = self.fleet.robots
         t = self.trials
-        self._leg_started = np.zeros(t, dtype=bool)
-        self.robots = {name: _Robot.at(truth, t) for name, truth in plan.start.items()}
-        self.built: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
-        self._build(ALL)
         solver = "wls" if len(plan.children) > 1 else "closed_form"
-        self.cps: CpsStates = estimators.cps(
-            t, plan.children, solver, FALSE_ALARM_RATE, sc.campaign.child_creep_m
+        self.cps = CpsBatch(
+            list(plan.children),
+            t,
+            solver=solver,
+            false_alarm_rate=FALSE_ALARM_RATE,
+            child_creep=sc.campaign.child_creep_m,
         )
         self.placed: dict[str, tuple[Observations, ParentEstimates]] = {}
-        self.datasets: dict[tuple[str, str, int], list[_DataSet]] = {}
+        self.datasets: dict[tuple[str, str, int], list[DataSet]] = {}
         self.tracks: list[list[NDArray[np.float64]]] = [[] for _ in range(t)]
         self.distance = np.zeros(t)
         self.failures = np.zeros(t, dtype=np.int64)
@@ -465,24 +150,7 @@ class BatchRun:
         self.executed = 0
         self.last_estimate: ParentEstimates | None = None
         self.last_truth = np.zeros((t, 3))
-        self._record_fix(self.cps.parent, self._start_centre(t), ALL)
-
-    def _build(self, rows: Rows) -> None:
-        """The trials' marker assemblies, each child's as built (its surveying error)."""
-        sigma = self.noise.marker_geometry_m
-        picked = None if isinstance(rows, slice) else rows
-        for child in self.plan.children:
-            cubes = sigma * self.draws.take(3, 3, rows=picked)
-            leds = sigma * self.draws.take(self.n_leds, 3, rows=picked)
-            if child not in self.built:
-                self.built[child] = (cubes, leds)
-            else:
-                self.built[child][0][rows], self.built[child][1][rows] = cubes, leds
-
-    def _start_centre(self, n: int) -> NDArray[np.float64]:
-        instrument = self.plan.start[self.plan.parent].instrument
-        assert instrument is not None
-        return np.repeat(instrument[None], n, axis=0)
+        self._record_fix(self._parent(self.cps), self.fleet.start_centre(t), ALL)
 
     # -- the steps -------------------------------------------------------------------------
     def run(self) -> BatchOutcome:
@@ -496,7 +164,7 @@ class BatchRun:
         r = self._rows(rows)
         self.executed += 1
         if isinstance(step, Drive):
-            self._drive([step], r)
+            self.fleet.drive([step], r)
         elif isinstance(step, Place):
             self._place(step.child, r)
         elif isinstance(step, Fix):
@@ -520,7 +188,7 @@ class BatchRun:
         if len(steps) != len(r) or len({s.robot for s in steps}) != 1:
             raise ValueError("drive_rows needs one drive of one robot per row")
         self.executed += 1
-        self._drive(steps, r)
+        self.fleet.drive(steps, r)
 
     def _rows(self, rows: ArrayLike | None) -> Rows:
         if rows is None:
@@ -532,85 +200,13 @@ class BatchRun:
             raise ValueError(f"rows must be distinct trials of 0 .. {self.trials - 1}")
         return r
 
-    def _picked(self, r: Rows) -> NDArray[np.intp] | None:
-        """The draws' rows: None for every trial."""
-        return None if isinstance(r, slice) else r
-
     def _count(self, r: Rows) -> int:
         return self.trials if isinstance(r, slice) else len(r)
 
-    def _drive(self, steps: Sequence[Drive], r: Rows) -> None:
-        step = steps[0]
-        robot = self.robots[step.robot]
-        if len(steps) == 1:
-            believed = np.repeat(step.believed[None], self._count(r), axis=0)
-        else:
-            believed = np.stack([s.believed for s in steps])
-        offset = _compose(robot.true[r], _inverse(robot.believed[r]))
-        true = _compose(offset, believed)
-        stop = self.noise.stopping
-        true[:, :2] += stop.sigma_xy * self.draws.take(2, rows=self._picked(r))
-        true[:, 2] += stop.sigma_yaw * self.draws.take(1, rows=self._picked(r))[:, 0]
-        robot.true[r], robot.believed[r] = true, believed
-        robot.stopped([s.truth for s in steps], r)
-        creep = self.noise.child_creep_m
-        if step.robot == self.plan.parent and creep > 0:
-            # The standing children creep once per leg of the parent (twin.sim.rig.creep),
-            # from their own stream: switching creep on changes no other draw.
-            index = np.arange(self.trials)[r]
-            fresh = index[~self._leg_started[index]]
-            if len(fresh):
-                self._leg_started[fresh] = True
-                if self._creep_draws is None:
-                    self._creep_draws = Draws(self.seeds, 0, stream=CREEP_BATCH_STREAM)
-                picked = None if len(fresh) == self.trials else fresh
-                for child in self.plan.children:
-                    self.robots[child].true[fresh, :2] += creep * self._creep_draws.take(
-                        2, rows=picked
-                    )
-
-    # -- shots -----------------------------------------------------------------------------
-    def _instrument(self, r: Rows) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The instrument's true centre (R, 3), m, and orientation (R, 3, 3) in W."""
-        parent = self.robots[self.plan.parent]
-        nominal = parent.nominal
-        centre = parent.moved(nominal["instrument"][r][:, None, :], r)[:, 0]
-        turn = rot_z(parent.true[r, 2] - nominal["pose"][r, 2])
-        return centre, turn @ nominal["orientation"][r]
-
-    def _cubes(self, child: str, r: Rows) -> NDArray[np.float64]:
-        """(R, 3, 3) the child's true cubes in W, its assembly's surveying error included."""
-        robot = self.robots[child]
-        error = np.einsum("tij,tkj->tki", rot_z(robot.true[r, 2]), self.built[child][0][r])
-        return robot.moved(robot.nominal["cubes"][r], r) + error
-
-    def _leds(self, child: str, r: Rows) -> NDArray[np.float64]:
-        """(R, N_led, 3) the child's true LEDs in W."""
-        robot = self.robots[child]
-        error = np.einsum("tij,tkj->tki", rot_z(robot.true[r, 2]), self.built[child][1][r])
-        return robot.moved(robot.nominal["leds"][r], r) + error
-
-    def _shots(self, child: str, r: Rows) -> NDArray[np.float64]:
-        """(R, 3, 3) levelled, rounded polar shots at the child's three cubes."""
-        centre, orientation = self._instrument(r)
-        # In the instrument's (tilted) frame: R^T (p - c).
-        local = np.einsum("tji,tkj->tki", orientation, self._cubes(child, r) - centre[:, None])
-        # The instrument's tilt is the nominal station's (a turn about z leaves it).
-        tilt = self.robots[self.plan.parent].nominal["tilt"][r]
-        polar = cartesian2polar(local)
-        picked = self._picked(r)
-        noisy = normalise_polar(
-            polar + polar_sigmas(polar, self.spec) * self.draws.take(3, 3, rows=picked)
-        )
-        reading = self.inclinometer.sigma * self.draws.take(3, 2, rows=picked)
-        levelled = level_points(
-            polar2cartesian(noisy), tilt[:, :1] + reading[..., 0], tilt[:, 1:] + reading[..., 1]
-        )
-        return quantise_polar(cartesian2polar(levelled), self.spec)
-
+    # -- CPS -------------------------------------------------------------------------------
     def _observe(self, child: str, r: Rows) -> Observations:
-        obs = self.estimators.observe(
-            self._shots(child, r),
+        obs = observe(
+            self.fleet.shots(child, r),
             self.advertised,
             self.advertised_tilt,
             self.marker,
@@ -619,23 +215,27 @@ class BatchRun:
         self.failures[r] += obs.inconsistent
         return obs
 
-    # -- CPS -------------------------------------------------------------------------------
-    def _cps(self, r: Rows) -> CpsStates:
+    def _cps(self, r: Rows) -> CpsBatch:
         """The CPS states of the trials ``r`` (write them back with :meth:`_cps_done`)."""
-        return self.cps if isinstance(r, slice) else self.cps.on_rows(r)
+        return self.cps if isinstance(r, slice) else self.cps.trials(r)
 
-    def _cps_done(self, r: Rows, part: CpsStates) -> None:
+    def _cps_done(self, r: Rows, part: CpsBatch) -> None:
         if not isinstance(r, slice):
-            self.cps.put_rows(r, part)
+            self.cps.set_trials(r, part)
+
+    @staticmethod
+    def _parent(cps: CpsBatch) -> ParentEstimates:
+        pose = cps.parent
+        return ParentEstimates(pose.yaw, pose.translation, pose.covariance)
 
     def _place(self, child: str, r: Rows) -> None:
         obs = self._observe(child, r)
         cps = self._cps(r)
-        cps.children_moved(child, obs)
+        cps.children_moved([ChildObservationBatch(child, obs.point, obs.covariance)])
         self._cps_done(r, cps)
         if self.network is not None:
-            self.network.stand(child, obs.point, obs.covariance, cps.child_position(child))
-        parent = cps.parent
+            self.network.stand(child, obs.point, obs.covariance, cps.child_position(child)[0])
+        parent = self._parent(cps)
         # The child's localisation is corrected from its marker's pose (as the campaign does).
         rotation = parent.rotation @ obs.rotation
         origin = parent.level2world(obs.translation[:, None, :])[:, 0]
@@ -647,21 +247,31 @@ class BatchRun:
         else:
             before = self.placed.get(child, (None, None))
             self.placed[child] = (
-                _put(before[0], r, obs, self.trials),
-                _put(before[1], r, parent, self.trials),
+                put(before[0], r, obs, self.trials),
+                put(before[1], r, parent, self.trials),
             )
 
     def _fix(self, children: tuple[str, ...], r: Rows) -> None:
-        self._leg_started[r] = False  # the parent's next drive starts a leg
+        self.fleet.leg_started[r] = False  # the parent's next drive starts a leg
         observations = [(child, self._observe(child, r)) for child in children]
         cps = self._cps(r)
-        self.failures[r] += cps.parent_moved(observations)
+        with warnings.catch_warnings():
+            # A few trials of thousands whose Gauss-Newton stops at its iteration limit
+            # keep that estimate, as the campaign's CPS does; a warning a chunk says nothing
+            # the trials' errors do not.
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            solution = cps.parent_moved(
+                [ChildObservationBatch(c, o.point, o.covariance) for c, o in observations]
+            )
+        # A trial without a solution (children too close) is lost: its state is NaN and it
+        # counts a failure at every later fix.
+        self.failures[r] += solution.inconsistent | solution.poor_geometry
         self._cps_done(r, cps)
-        parent = cps.parent
+        parent = self._parent(cps)
         self.robots[self.plan.parent].believed[r] = np.column_stack(
             [parent.translation[:, 0], parent.translation[:, 1], parent.yaw]
         )
-        centre, _ = self._instrument(r)
+        centre, _ = self.fleet.instrument(r)
         self._record_fix(parent, centre, r)
         if self.network is not None:
             for child, obs in observations:
@@ -680,8 +290,8 @@ class BatchRun:
         if isinstance(r, slice):
             self.last_estimate, self.last_truth = parent, np.asarray(true_centre, dtype=float)
         else:
-            self.last_estimate = _put(self.last_estimate, r, parent, self.trials)
-            self.last_truth = _put(
+            self.last_estimate = put(self.last_estimate, r, parent, self.trials)
+            self.last_truth = put(
                 self.last_truth, r, np.asarray(true_centre, dtype=float), self.trials
             )
         index = np.arange(self.trials)[r]
@@ -696,7 +306,7 @@ class BatchRun:
         return list(self.tracks[row])
 
     # -- data and calibrations -------------------------------------------------------------
-    def _dataset(self, key: tuple[str, str, int], r: Rows, open_only: bool = False) -> _DataSet:
+    def _dataset(self, key: tuple[str, str, int], r: Rows, open_only: bool = False) -> DataSet:
         """The data set ``key`` (dataset, camera, visit) of the trials ``r``: the latest
         they took together (``open_only``: still being taken), or a new one."""
         index = np.arange(self.trials)[r]
@@ -708,21 +318,21 @@ class BatchRun:
                 and not (open_only and data.size is not None)
             ):
                 return data
-        data = _DataSet(index, np.ones(len(index), dtype=bool))
+        data = DataSet(index, np.ones(len(index), dtype=bool))
         cohorts.append(data)
         return data
 
     def _point(self, step: Point, r: Rows) -> None:
         obs, parent = self.placed[step.child]
         if not isinstance(r, slice):
-            obs, parent = _take(obs, r), _take(parent, r)
+            obs, parent = take(obs, r), take(parent, r)
         n = self._count(r)
-        leds_level, cov_level = self.estimators.leds(obs, self.marker)
+        leds_level, cov_level = leds(obs, self.marker)
         world = parent.level2world(leds_level)
         # The levelled frame turns about z into W: each LED's 3 x 3 block turns with it.
         turn = np.kron(np.eye(leds_level.shape[1]), parent.rotation)
         camera = self.plan.cameras[step.camera]
-        true = self._leds(step.child, r)
+        true = self.fleet.leds(step.child, r)
         pixels = camera.project_or_nan(true.reshape(-1, 3)).reshape(n, -1, 2)
         # An LED is found when all of its blob lies in the image (as the camera's sensor
         # has it).
@@ -731,16 +341,16 @@ class BatchRun:
         seen = in_image(pixels.reshape(-1, 2), camera.image_size, margin.reshape(-1))
         seen = seen.reshape(n, -1)
         pixels = pixels + self.led_px[step.camera] * self.draws.take(
-            true.shape[1], 2, rows=self._picked(r)
+            true.shape[1], 2, rows=picked(r)
         )
-        leds = np.asarray(step.leds, dtype=np.intp)
-        if len(leds) < true.shape[1]:
+        planned = np.asarray(step.leds, dtype=np.intp)
+        if len(planned) < true.shape[1]:
             # The LEDs the plan's camera found at this stop; the others give no point.
-            world, pixels, seen = world[:, leds], pixels[:, leds], seen[:, leds]
-        missed = _missed(seen, step.partial)
-        self.failures[r] += missed.any(axis=1)
-        world = np.where(missed[..., None], np.nan, world)
-        pixels = np.where(missed[..., None], np.nan, pixels)
+            world, pixels, seen = world[:, planned], pixels[:, planned], seen[:, planned]
+        lost = missed(seen, step.partial)
+        self.failures[r] += lost.any(axis=1)
+        world = np.where(lost[..., None], np.nan, world)
+        pixels = np.where(lost[..., None], np.nan, pixels)
         data = self._dataset((step.dataset, step.camera, step.visit), r, open_only=True)
         data.points.append(world)
         data.pixels.append(pixels)
@@ -753,7 +363,7 @@ class BatchRun:
             else np.zeros((0, 0))
         )
         if self.network is not None and step.dataset == "visit":
-            rows = (3 * leds[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
+            rows = (3 * planned[:, None] + np.arange(3)).ravel()  # the planned LEDs' blocks
             cov = data.covariances[-1][:, rows][:, :, rows]
             survey = data.surveys[-1]
             self.network.stop(
@@ -765,7 +375,7 @@ class BatchRun:
                 step.child,
                 survey[:, rows] if survey.size else None,
             )
-        data.leds.append(leds)
+        data.leds.append(planned)
 
     def _reference(
         self, camera: str, r: Rows
@@ -797,27 +407,26 @@ class BatchRun:
         too_few = found(points, pixels).sum(axis=1) < self.plan.scenario.campaign.min_points
         pixels = np.where(too_few[:, None, None], np.nan, pixels)
         truth = self.plan.cameras[step.camera]
-        est = self.estimators
-        cal = est.calibrate(points, pixels, truth.image_size, step.nominal)
+        cal = calibrate(points, pixels, truth.image_size, step.nominal)
         if self.network is not None:
             self.network.calibrated(
                 step.camera, step.visit, cal.cameras, cal.calibrated, step.points
             )
-        position_error, rotation_error = est.truth_errors(cal, truth)
-        local = est.evaluate(cal, points, pixels)
+        position_error, rotation_error = truth_errors(cal, truth)
+        local = evaluate(cal, points, pixels)
         reference = self._reference(step.camera, r)
         if reference is not None:
-            world = est.evaluate(cal, *reference)
+            world = evaluate(cal, *reference)
         else:
             world = (np.full(n, np.nan), np.full(n, np.nan))
         assert self.last_estimate is not None
-        parent = self.last_estimate if isinstance(r, slice) else _take(self.last_estimate, r)
+        parent = self.last_estimate if isinstance(r, slice) else take(self.last_estimate, r)
         own = own_position_variance(
             cal.position_std,
             cal.sigma_px,
             self.advertised_led_px[step.camera],
             np.trace(
-                est.points_effect(
+                points_effect(
                     cal, points, data.stops(), data.slots()[: points.shape[1]], data.shared()
                 ),
                 axis1=1,
@@ -844,7 +453,7 @@ class BatchRun:
         if isinstance(r, slice):
             self.visits[key] = outcome
         else:
-            self.visits[key] = _put(self.visits.get(key), r, outcome, self.trials)
+            self.visits[key] = put(self.visits.get(key), r, outcome, self.trials)
 
     # -- trials that start again -----------------------------------------------------------
     def restart(self, rows: ArrayLike, seeds: Sequence[int]) -> None:
@@ -857,30 +466,21 @@ class BatchRun:
         self.executed += 1
         for k, seed in zip(r, seeds, strict=True):
             self.seeds[k] = int(seed)
-        self.draws.restart(r, seeds)
-        if self._creep_draws is not None:
-            self._creep_draws.restart(r, seeds)
-        for name, truth in self.plan.start.items():
-            robot = self.robots[name]
-            robot.true[r] = truth.pose
-            robot.believed[r] = truth.pose
-            robot.stopped([truth], r)
-        self._build(r)
-        self.cps.reset_rows(r)
+        self.fleet.restart(r, seeds)
+        self.cps.reset_trials(r)
         for key, cohorts in self.datasets.items():
             for data in cohorts:
                 data.alive &= ~np.isin(data.rows, r)
             self.datasets[key] = [data for data in cohorts if data.alive.any()]
         for key, outcome in self.visits.items():
-            self.visits[key] = _put(outcome, r, _blank_rows(outcome, len(r)), self.trials)
-        self._leg_started[r] = False
+            self.visits[key] = put(outcome, r, blank_rows(outcome, len(r)), self.trials)
         self.distance = self.distance.copy()
         self.distance[r] = 0.0
         self.failures[r] = 0
         # Their first fix: the parent's start, no travel yet.
-        parent = _take(self.cps.parent, r)
-        self.last_estimate = _put(self.last_estimate, r, parent, self.trials)
-        self.last_truth = _put(self.last_truth, r, self._start_centre(len(r)), self.trials)
+        parent = take(self._parent(self.cps), r)
+        self.last_estimate = put(self.last_estimate, r, parent, self.trials)
+        self.last_truth = put(self.last_truth, r, self.fleet.start_centre(len(r)), self.trials)
         for i, k in enumerate(r):
             self.tracks[k] = [parent.translation[i]]
 
@@ -895,25 +495,3 @@ class BatchRun:
             distance=self.distance.copy(),
             failures=self.failures.copy(),
         )
-
-
-def _missed(seen: NDArray[np.bool_], partial: bool) -> NDArray[np.bool_]:
-    """(T, k) which of a stop's k planned LEDs each trial gives up, from (T, k) which it
-    found: where the stop's plan is ``partial`` only the LEDs it missed (as the campaign
-    does), else a trial that misses one gives up the whole stop. Either counts one failure
-    a stop."""
-    if partial:
-        return ~seen
-    lost = ~seen.all(axis=1)
-    return np.broadcast_to(lost[:, None], seen.shape)
-
-
-def transfer_rms(parent: ParentEstimates, camera: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(T,) RMS 3D error of a camera's centre (T, 3) from the parent's pose error at the
-    station (:func:`twin.montecarlo.prediction.camera_position_covariance`), m."""
-    lever = camera - parent.translation
-    jac = np.zeros((len(lever), 3, 4))
-    jac[:, 0, 0], jac[:, 1, 0] = -lever[:, 1], lever[:, 0]
-    jac[:, :, 1:] = np.eye(3)
-    cov = jac @ parent.covariance @ np.swapaxes(jac, 1, 2)
-    return np.sqrt(np.trace(cov, axis1=1, axis2=2))

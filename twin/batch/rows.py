@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Hashable, Mapping, Sequence
 
 from twin.batch.execute import BatchRun
-from twin.batch.plan import Calibrate, DataSetDone, Drive, Fix, Place, Point, Step
+from twin.batch.steps import Calibrate, DataSetDone, Drive, Fix, Place, Point, Step
 
 __all__ = ["execute_rows"]
 

@@ -45,7 +45,7 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun
-from twin.batch.plan import BatchPlan
+from twin.batch.steps import BatchPlan
 from twin.envs.episode import Episode, EpisodePlanner, EpisodeSettings
 from twin.envs.free_space import FreeSpace
 from twin.envs.moves import MoveLayout

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun
-from twin.batch.plan import BatchPlan, Calibrate, Step
+from twin.batch.steps import BatchPlan, Calibrate, Step
 from twin.envs.free_space import FreeSpace
 from twin.envs.knowledge import BatchKnowledge, Knowledge
 from twin.envs.moves import MoveLayout

@@ -90,7 +90,7 @@ def knowledge(
     for k, child in enumerate(batch.plan.children):
         believed = batch.robots[child].believed
         try:
-            placed = batch.cps.child_position(child)[:, :2]
+            placed = batch.cps.child_position(child)[0][:, :2]
         except ValueError:  # not measured yet in any trial
             placed = np.full((t, 2), np.nan)
         # A trial that has not measured it yet (or lost its CPS state): its own estimate.

@@ -1,7 +1,7 @@
 """The noise-free campaign of a scenario, advanced by an agent's moves
 (:class:`LiveCampaign`), and where it stands at each decision (:class:`Decision`).
 
-The campaign runs as :class:`twin.batch.plan.PlanSession` (the campaign itself at the
+The campaign runs as :class:`twin.batch.steps.PlanSession` (the campaign itself at the
 geometric fidelity, without noise) and answers the questions that are not the agent's with
 the paper's strategy (which cameras get a reference data set, where the child stops for a
 camera's data, the leg that is not needed once the parent is at its station). The agent
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from twin.batch.plan import PlanSession, Step
+from twin.batch.steps import PlanSession, Step
 from twin.campaign.paper_strategy import ARRIVED
 from twin.campaign.strategy import (
     CampaignView,

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
-from twin.batch.plan import BatchPlan, Step
+from twin.batch.steps import BatchPlan, Step
 from twin.envs.live_campaign import Decision
 from twin.envs.moves import MoveLayout
 from twin.scenario.schema import Scenario

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from twin.batch.plan import Step
+from twin.batch.steps import Step
 from twin.campaign.plan.route import RoutePath
 from twin.envs.episode import EpisodePlanner
 from twin.envs.live_campaign import Decision, LiveCampaign

@@ -12,7 +12,7 @@ once per site and process (:class:`StandSite`, :func:`site_for`).
   included); found the first time a leg is asked for, then read back;
 - the **stations' data**: the plan's steps of each station's data set and calibration,
   recorded once from the campaign itself, run noise-free with the paper's strategy
-  (:class:`twin.batch.plan.PlanSession`). Its start (the reference data) is the episode's
+  (:class:`twin.batch.steps.PlanSession`). Its start (the reference data) is the episode's
   start.
 """
 
@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from twin.batch.plan import (
+from twin.batch.steps import (
     BatchPlan,
     Calibrate,
     DataSetDone,

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from twin.batch.plan import (
+from twin.batch.steps import (
     Step,
 )
 from twin.campaign.paper_strategy import ARRIVED

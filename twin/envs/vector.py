@@ -34,8 +34,8 @@ from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun
-from twin.batch.plan import Step
 from twin.batch.rows import execute_rows
+from twin.batch.steps import Step
 from twin.envs.campaign_env import CpsCampaignEnv, check_options
 from twin.envs.episode import Episode, SiteShare
 from twin.envs.knowledge import BatchKnowledge

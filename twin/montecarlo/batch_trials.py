@@ -2,7 +2,7 @@
 (:class:`twin.batch.execute.BatchRun`), each trial giving the rows of the trial table that
 a geometric trial gives (:data:`twin.montecarlo.trial.COLUMNS`).
 
-The plan is recorded once per run (:func:`twin.batch.plan.record_plan`) and shipped with
+The plan is recorded once per run (:func:`twin.batch.steps.record_plan`) and shipped with
 every chunk; a chunk holds trials of one configuration (one noise source, or all).
 """
 
@@ -19,7 +19,7 @@ import numpy as np
 
 from twin.batch.execute import BatchOutcome, BatchRun
 from twin.batch.network import AdjustedVisits, adjust_trials
-from twin.batch.plan import BatchPlan
+from twin.batch.steps import BatchPlan
 from twin.montecarlo.sources import isolate
 from twin.montecarlo.trial import (
     TrialFailed,

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
-from twin.batch.plan import BatchPlan, record_plan
+from twin.batch.steps import BatchPlan, record_plan
 from twin.montecarlo.batch_trials import chunks, default_chunk_size, run_batch_chunk
 from twin.montecarlo.engines import make_engine
 from twin.montecarlo.paper_targets import TARGETS, Target, trial_values

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 from twin.campaign.strategies import strategy_name
 from twin.montecarlo.batch_trials import (
     BATCH_OMITS,

@@ -9,7 +9,7 @@ import pytest
 from tests.twin.campaign.loop_scenario import loop_scenario
 from twin.batch.execute import BatchRun
 from twin.batch.network import adjust_trials
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 
 VISITS = [("cam1", 1), ("cam1", 2)]
 

@@ -20,8 +20,9 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from twin.batch.execute import ALL, BatchRun
-from twin.batch.plan import Drive, Fix, Place, PlanSession, Point, record_plan
+from twin.batch.execute import BatchRun
+from twin.batch.row_arrays import ALL
+from twin.batch.steps import Drive, Fix, Place, PlanSession, Point, record_plan
 from twin.instruments.tilt import tilt_from_orientation
 from twin.scenario import load_scenario
 from twin.scenario.schema import InclinometerConfig, StoppingConfig
@@ -107,7 +108,7 @@ def test_a_tilted_station_levels_its_shots_with_its_tilt(smoke_plan, leg):
     assert tilt > 5e-4
     drive = Drive(leg.parent, tilted.pose.copy(), tilted)
     run = _run(leg, _quiet(leg), steps=[*leg.steps[:4], drive, leg.steps[5]], trials=2)
-    centre, _ = run._instrument(ALL)
+    centre, _ = run.fleet.instrument(ALL)
     np.testing.assert_allclose(run.last_estimate.translation, centre, atol=1e-9)
     np.testing.assert_allclose(run.cps.parent.yaw, tilted.pose[2], atol=1e-9)
 
@@ -167,7 +168,7 @@ def test_the_creep_of_the_standing_children_once_a_leg(leg):
 def _shots(plan, noise):
     """(T, 3, 3) the parent's polar shots at each child's cubes after the leg's drives."""
     run = _run(plan, noise, steps=[s for s in plan.steps if isinstance(s, Drive)])
-    return {child: run._shots(child, ALL) for child in plan.children}
+    return {child: run.fleet.shots(child, ALL) for child in plan.children}
 
 
 def _wrapped(angle: np.ndarray) -> np.ndarray:
@@ -237,8 +238,8 @@ def test_the_marker_assemblys_error_is_each_childs_own_for_the_whole_trial(leg):
     leds, cubes = [], []
     for step in drives:
         c = step.robot
-        leds.append(built._leds(c, ALL) - exact._leds(c, ALL))
-        cubes.append(built._cubes(c, ALL) - exact._cubes(c, ALL))
+        leds.append(built.fleet.leds(c, ALL) - exact.fleet.leds(c, ALL))
+        cubes.append(built.fleet.cubes(c, ALL) - exact.fleet.cubes(c, ALL))
     _assert_sigma(np.stack(leds), sigma, "LED positions")
     _assert_sigma(np.stack(cubes), sigma, "corner cubes")
     # The children's errors are their own; a child driven elsewhere keeps its error, turned
@@ -250,7 +251,7 @@ def test_the_marker_assemblys_error_is_each_childs_own_for_the_whole_trial(leg):
     before = leds[0]
     for run in (exact, built):
         run.step(to)
-    after = built._leds(child, ALL) - exact._leds(child, ALL)
+    after = built.fleet.leds(child, ALL) - exact.fleet.leds(child, ALL)
     c, s = np.cos(turn), np.sin(turn)
     rotated = before.copy()
     rotated[..., 0] = c * before[..., 0] - s * before[..., 1]

@@ -11,9 +11,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from twin.batch.execute import BatchRun, Draws
-from twin.batch.plan import Calibrate, Drive, record_plan
+from twin.batch.execute import BatchRun
 from twin.batch.rows import execute_rows
+from twin.batch.steps import Calibrate, Drive, record_plan
+from twin.batch.streams import Draws
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

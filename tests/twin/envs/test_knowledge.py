@@ -34,7 +34,9 @@ class _Cps:
 
     def child_position(self, child):
         if child == "child1":
-            return np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.0], [5.0, 6.0, 0.0]])
+            return np.array([[1.0, 2.0, 0.0], [3.0, 4.0, 0.0], [5.0, 6.0, 0.0]]), np.zeros(
+                (3, 3, 3)
+            )
         raise ValueError("not measured yet")
 
 

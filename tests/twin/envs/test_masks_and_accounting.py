@@ -12,7 +12,7 @@ import pytest
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.batch.estimators import ParentEstimates
 from twin.batch.execute import transfer_rms
-from twin.batch.plan import Drive
+from twin.batch.steps import Drive
 from twin.envs import CpsCampaignEnv
 from twin.envs.episode import visit_mask
 from twin.envs.leg_choices import LegChoices

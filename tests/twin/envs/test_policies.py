@@ -10,7 +10,7 @@ from scipy import stats
 
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.batch.execute import BatchRun
-from twin.batch.plan import record_plan
+from twin.batch.steps import record_plan
 from twin.envs import CpsCampaignEnv
 from twin.envs.policies import POLICIES, policy_named
 from twin.scenario import load_scenario

@@ -18,7 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import twin.sim  # noqa: F401  (headless rendering)
-from twin.batch.plan import PlanSession
+from twin.batch.steps import PlanSession
 from twin.envs import ENV_ID, CpsCampaignEnv
 from twin.envs.stand_site import site_for
 from twin.envs.stands import STD_STEP, rounded_std

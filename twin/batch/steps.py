@@ -1,5 +1,5 @@
-"""The campaign's plan for the batch fidelity: what the geometric fidelity does without
-noise, recorded once per scenario and strategy.
+"""The campaign's recorded steps, which the batch fidelity replays: what the geometric
+fidelity does without noise, recorded once per scenario and strategy (the plan).
 
 :func:`record_plan` runs the campaign at the geometric fidelity with every noise source off
 (the instrument still advertises the scenario's noise, so the campaign weighs its data and
