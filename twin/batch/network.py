@@ -14,42 +14,123 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera, TsaiCameras
 from calib.metrics import pose_errors
-from calib.tsai import tsai_from_vector, tsai_vector
+from calib.tsai import tsai_from_vector
 from twin.campaign.check.consistency import DEFAULT_FALSE_ALARM_RATE
+from twin.campaign.network_log import CampaignNetwork
 from twin.localization.adjustment import NothingToAdjustError, adjust_network
 from twin.localization.network import NetworkBuilder
 
 
+class Event(Protocol):
+    """A measurement of T trials, as (T, ...) arrays."""
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        """Give trial ``k``'s measurement to its network."""
+
+
+@dataclass(frozen=True)
+class Station:
+    """A CPS fix: yaw (T,) rad, centre (T, 3) m."""
+
+    yaw: NDArray[np.float64]
+    centre: NDArray[np.float64]
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        net.builder.station(float(self.yaw[k]), self.centre[k])
+
+
+@dataclass(frozen=True)
+class Stand:
+    """A child placed: level (T, 3) m, covariance (T, 3, 3) m^2, world (T, 3) m."""
+
+    child: str
+    level: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    world: NDArray[np.float64]
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        net.builder.stand(self.child, self.level[k], self.covariance[k], self.world[k])
+
+
+@dataclass(frozen=True)
+class Sight:
+    """A standing child measured at a fix: level (T, 3) m, covariance (T, 3, 3) m^2."""
+
+    child: str
+    level: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        net.builder.sight_child(self.child, self.level[k], self.covariance[k])
+
+
+@dataclass(frozen=True)
+class Stop:
+    """An LED stop of a visit: leds_world (T, N, 3) m (NaN for the LEDs a trial gave up),
+    covariance (T, 3N, 3N) m^2, pixels (T, N, 2), the child and its survey loading
+    (T, 3N, M) or None (:attr:`twin.campaign.records.DataPoint.survey_loading`)."""
+
+    camera: str
+    visit: int
+    leds_world: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    pixels: NDArray[np.float64]
+    child: str
+    survey: NDArray[np.float64] | None
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        survey = None if self.survey is None else self.survey[k]
+        net.stop(
+            self.camera,
+            self.visit,
+            self.leds_world[k],
+            self.covariance[k],
+            self.pixels[k],
+            self.child,
+            survey,
+        )
+
+
+@dataclass(frozen=True)
+class Calibrated:
+    """A visit calibrated from its first ``points`` LED points: the T cameras and (T,)
+    which trials it calibrated."""
+
+    camera: str
+    visit: int
+    cameras: TsaiCameras
+    calibrated: NDArray[np.bool_]
+    points: int
+
+    def feed(self, net: CampaignNetwork, k: int, pixel_noise_px: Mapping[str, float]) -> None:
+        if self.calibrated[k]:
+            sigma = max(float(pixel_noise_px[self.camera]), 1e-3)  # noise-free pixels too
+            net.calibrated(self.camera, self.visit, self.cameras.camera(k), self.points, sigma)
+
+
 @dataclass
 class NetworkRecorder:
-    """The measurements of T trials in the order they were made (arrays over the trials).
+    """The measurements of T trials in the order they were made (arrays over the trials):
+    each trial's network is its log's (:class:`twin.campaign.network_log.CampaignNetwork`),
+    one camera per camera started from its first successful calibration."""
 
-    Each event is a tuple: ``("station", yaw (T,), centre (T, 3))``; ``("stand", child,
-    level (T, 3), covariance (T, 3, 3), world (T, 3))``; ``("sight", child, level,
-    covariance)``; ``("stop", camera, visit, leds_world (T, N, 3), covariance_world
-    (T, 3N, 3N), pixels (T, N, 2), child, survey (T, 3N, M) or None)`` (NaN for the LEDs a
-    trial gave up; the survey loading: :attr:`twin.campaign.records.DataPoint.
-    survey_loading`);
-    ``("calibrated", camera, visit, cameras, calibrated (T,), points)``.
-    """
-
-    events: list[tuple] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
 
     def station(self, yaw: NDArray, centre: NDArray) -> None:
-        self.events.append(("station", np.array(yaw), np.array(centre)))
+        self.events.append(Station(np.array(yaw), np.array(centre)))
 
     def stand(self, child: str, level: NDArray, cov: NDArray, world: NDArray) -> None:
-        self.events.append(("stand", child, np.array(level), np.array(cov), np.array(world)))
+        self.events.append(Stand(child, np.array(level), np.array(cov), np.array(world)))
 
     def sight(self, child: str, level: NDArray, cov: NDArray) -> None:
-        self.events.append(("sight", child, np.array(level), np.array(cov)))
+        self.events.append(Sight(child, np.array(level), np.array(cov)))
 
     def stop(
         self,
@@ -62,8 +143,7 @@ class NetworkRecorder:
         survey: NDArray | None = None,
     ) -> None:
         self.events.append(
-            (
-                "stop",
+            Stop(
                 camera,
                 visit,
                 np.array(leds_world),
@@ -77,7 +157,7 @@ class NetworkRecorder:
     def calibrated(
         self, camera: str, visit: int, cameras: TsaiCameras, calibrated: NDArray, points: int
     ) -> None:
-        self.events.append(("calibrated", camera, visit, cameras, np.array(calibrated), points))
+        self.events.append(Calibrated(camera, visit, cameras, np.array(calibrated), points))
 
     def network(
         self,
@@ -85,64 +165,11 @@ class NetworkRecorder:
         pixel_noise_px: Mapping[str, float],
         child_creep_m: float = 0.0,
     ) -> tuple[NetworkBuilder, dict[tuple[str, int], tuple[int, ...]]]:
-        """Trial ``k``'s network (one camera per camera, started from its first successful
-        calibration) and the LED stops of each calibrated visit."""
-        net = NetworkBuilder(child_creep_m)
-        stops: dict[tuple[str, int], list[tuple[Any, ...]]] = {}
-        cameras: dict[str, int] = {}
-        groups: dict[tuple[str, int], tuple[int, ...]] = {}
+        """Trial ``k``'s network and the LED stops of each calibrated visit."""
+        net = CampaignNetwork(child_creep_m)
         for event in self.events:
-            kind = event[0]
-            if kind == "station":
-                net.station(float(event[1][k]), event[2][k])
-            elif kind == "stand":
-                net.stand(event[1], event[2][k], event[3][k], event[4][k])
-            elif kind == "sight":
-                net.sight_child(event[1], event[2][k], event[3][k])
-            elif kind == "stop":
-                _, camera, visit, world, cov, pixels, child, survey = event
-                stops.setdefault((camera, visit), []).append(
-                    (
-                        net.current,
-                        world[k],
-                        cov[k],
-                        pixels[k],
-                        child,
-                        None if survey is None else survey[k],
-                    )
-                )
-            elif kind == "calibrated":
-                _, camera, visit, cams, ok, points = event
-                if not ok[k]:
-                    continue
-                model = cams.camera(k)
-                if camera not in cameras:
-                    sigma = max(float(pixel_noise_px[camera]), 1e-3)
-                    cameras[camera] = net.camera(
-                        tsai_vector(model), model.image_size, sigma, camera
-                    )
-                first, left = len(net.leds), int(points)
-                for station, world, cov, pixels, child, survey in stops.get((camera, visit), []):
-                    if left <= 0:
-                        break
-                    n = min(left, len(world))
-                    left -= n
-                    seen = np.isfinite(world[:n]).all(axis=1) & np.isfinite(pixels[:n]).all(axis=1)
-                    if not seen.any():
-                        continue
-                    rows = np.repeat(seen, 3)
-                    block = cov[: 3 * n, : 3 * n][np.ix_(rows, rows)]
-                    net.stop(
-                        station,
-                        cameras[camera],
-                        world[:n][seen],
-                        block,
-                        pixels[:n][seen],
-                        child,
-                        None if survey is None else survey[: 3 * n][rows],
-                    )
-                groups[(camera, visit)] = tuple(range(first, len(net.leds)))
-        return net, groups
+            event.feed(net, k, pixel_noise_px)
+        return net.builder, dict(zip(net.calibrations, net.calibration_stops, strict=True))
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,7 @@
-"""A run's log as a network for the global adjustment (:mod:`twin.localization.network`).
+"""A campaign's measurements as a network for the global adjustment
+(:mod:`twin.localization.network`): :class:`CampaignNetwork` takes them in the order they
+were made, from a run's log (:func:`network_from_log`) or from one trial of the batch
+fidelity (:class:`twin.batch.network.NetworkRecorder`).
 
 The campaign records what the adjustment needs as it goes (:mod:`twin.campaign.records`):
 
@@ -26,6 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.camera import TsaiCamera
 from calib.io.camera_files import camera_from_dict
 from calib.tsai import tsai_vector
 from twin.campaign.records import CALIBRATION, CHILD_PLACED, CONTROL_SIGHTING, PARENT_FIX, POINT
@@ -68,6 +72,91 @@ def _a(values: Any) -> NDArray[np.float64]:
     )
 
 
+class CampaignNetwork:
+    """A network assembled from a campaign's measurements in the order it made them.
+
+    The stations, stands and sightings go straight to the network
+    (:class:`twin.localization.network.NetworkBuilder`: :attr:`builder`); an LED stop is
+    kept with its station until a calibration of its visit says how many of the visit's
+    LED points its data set holds (:meth:`calibrated`).
+
+    Args:
+        child_creep_m: how far a standing child may creep on each horizontal axis while the
+            parent drives, m.
+        control_points: surveyed world coordinates (3,) of control points by name, m.
+    """
+
+    def __init__(
+        self,
+        child_creep_m: float = 0.0,
+        control_points: Mapping[str, NDArray[np.float64]] | None = None,
+    ) -> None:
+        self.builder = NetworkBuilder(child_creep_m, control_points)
+        self.camera_keys: list[tuple[str, int]] = []
+        self.calibrations: list[tuple[str, int]] = []
+        self.calibration_stops: list[tuple[int, ...]] = []
+        self._stops: dict[tuple[str, int], list[tuple[int, tuple[Any, ...]]]] = {}
+
+    def stop(
+        self,
+        camera: str,
+        visit: int,
+        leds_world: NDArray[np.float64],
+        covariance_world: NDArray[np.float64],
+        pixels: NDArray[np.float64],
+        child: str = "",
+        survey_world: NDArray[np.float64] | None = None,
+    ) -> None:
+        """An LED stop of a visit from the current station: (N, 3) LEDs in W, m (NaN where
+        not found), their (3N, 3N) covariance in W, (N, 2) pixels, the child and the LEDs'
+        (3N, M) loading on its marker survey error (None: known exactly)."""
+        stop = (leds_world, covariance_world, pixels, child, survey_world)
+        self._stops.setdefault((camera, visit), []).append((self.builder.current, stop))
+
+    def calibrated(
+        self,
+        camera: str,
+        visit: int,
+        model: TsaiCamera,
+        points: int,
+        sigma_px: float,
+        per_visit: bool = False,
+    ) -> tuple[int, ...]:
+        """A calibration of a visit from the first ``points`` LED points of its stops (the
+        LEDs found): those LED sightings of the camera, started from ``model`` where it is
+        new (one camera per camera, or per visit with ``per_visit``) with ``sigma_px``
+        pixel noise, px. Returns the indices of the LED sightings."""
+        key = (camera, visit if per_visit else 0)
+        if key not in self.camera_keys:
+            label = f"{camera} visit {visit}" if per_visit else camera
+            self.builder.camera(tsai_vector(model), model.image_size, sigma_px, label)
+            self.camera_keys.append(key)
+        net = self.builder
+        first, left = len(net.leds), int(points)
+        for station, (world, cov, pixels, child, survey) in self._stops.get((camera, visit), []):
+            if left <= 0:
+                break
+            n = min(left, len(world))
+            left -= n
+            seen = np.isfinite(world[:n]).all(axis=1) & np.isfinite(pixels[:n]).all(axis=1)
+            if not seen.any():
+                continue
+            rows = np.repeat(seen, 3)
+            net.stop(
+                station,
+                self.camera_keys.index(key),
+                world[:n][seen],
+                cov[: 3 * n, : 3 * n][np.ix_(rows, rows)],
+                pixels[:n][seen],
+                child,
+                None if survey is None else survey[: 3 * n][rows],
+            )
+        group = tuple(range(first, len(net.leds)))
+        self.calibrations.append((camera, visit))
+        self.calibration_stops.append(group)
+        return group
+
+
 def network_from_log(
     messages: Iterable[Any],
     pixel_noise_px: float | Mapping[str, float] | None = None,
@@ -98,14 +187,13 @@ def network_from_log(
     """
     if cameras not in CAMERA_MODES:
         raise ValueError(f"cameras must be one of {CAMERA_MODES}, got {cameras!r}")
-    net = NetworkBuilder(child_creep_m, control_points)
+    net = CampaignNetwork(child_creep_m, control_points)
     times: list[float] = []
-    stops: dict[tuple[str, int], list[tuple[int, dict[str, Any]]]] = {}
     calibrations: list[dict[str, Any]] = []
     for m in messages:
         d = m.data
         if m.topic == PARENT_FIX:
-            net.station(float(d["yaw"]), _a(d["translation"]))
+            net.builder.station(float(d["yaw"]), _a(d["translation"]))
             times.append(float(d["timestamp"]))
             children = list(d.get("children", ()))
             level = _a(d.get("children_level", np.zeros((0, 3)))).reshape(-1, 3)
@@ -116,59 +204,46 @@ def network_from_log(
                 )
             cov = _a(d.get("children_covariance", np.zeros((0, 3, 3)))).reshape(-1, 3, 3)
             for child, p, c in zip(children, level, cov, strict=True):
-                net.sight_child(child, p, c)
+                net.builder.sight_child(child, p, c)
         elif m.topic == CHILD_PLACED and times:
-            net.stand(d["child"], _a(d["point_level"]), _a(d["covariance"]), _a(d["world"]))
+            net.builder.stand(d["child"], _a(d["point_level"]), _a(d["covariance"]), _a(d["world"]))
         elif m.topic == CONTROL_SIGHTING and times:
-            net.sight_control(d["name"], _a(d["point_level"]), _a(d["covariance"]))
+            net.builder.sight_control(d["name"], _a(d["point_level"]), _a(d["covariance"]))
         elif m.topic == POINT and d["dataset"] == "visit" and times:
-            stops.setdefault((d["camera"], int(d["visit"])), []).append((net.current, d))
+            world = _a(d["leds_world"]).reshape(-1, 3)
+            cov = _a(d.get("leds_covariance", np.zeros((0, 0))))
+            if cov.size == 0:  # a log written before the points' covariance was recorded
+                cov = np.zeros((3 * len(world), 3 * len(world)))
+            survey = _a(d.get("survey_loading", np.zeros((0, 0))))
+            net.stop(
+                d["camera"],
+                int(d["visit"]),
+                world,
+                cov,
+                _a(d["pixels"]).reshape(-1, 2),
+                str(d.get("child", "")),
+                survey.reshape(len(survey), -1) if survey.size else None,
+            )
         elif m.topic == CALIBRATION:
             calibrations.append(d)
     if not times or not calibrations:
         raise LogNetworkError("the log holds no CPS fix or no calibration to adjust")
-
-    keys: list[tuple[str, int]] = []
-    groups: list[tuple[int, ...]] = []
     for rec in calibrations:
-        key = (rec["camera"], 0 if cameras == "shared" else int(rec["visit"]))
-        if key not in keys:
-            model = camera_from_dict(rec["camera_model"], f"calibration of {rec['camera']}")
-            label = key[0] if cameras == "shared" else f"{key[0]} visit {key[1]}"
-            sigma = _pixel_noise(pixel_noise_px, rec, calibrations)
-            net.camera(tsai_vector(model), model.image_size, sigma, label)
-            keys.append(key)
-        first = len(net.leds)
-        left = int(rec["points"])
-        for station, p in stops.get((rec["camera"], int(rec["visit"])), []):
-            if left <= 0:
-                break
-            world = _a(p["leds_world"]).reshape(-1, 3)[:left]
-            n = len(world)
-            left -= n
-            cov = _a(p.get("leds_covariance", np.zeros((0, 0))))
-            if cov.size == 0:  # a log written before the points' covariance was recorded
-                cov = np.zeros((3 * n, 3 * n))
-            pixels = _a(p["pixels"]).reshape(-1, 2)[:n]
-            survey = _a(p.get("survey_loading", np.zeros((0, 0))))
-            net.stop(
-                station,
-                keys.index(key),
-                world,
-                cov[: 3 * n, : 3 * n],
-                pixels,
-                str(p.get("child", "")),
-                survey.reshape(len(survey), -1)[: 3 * n] if survey.size else None,
-            )
-        groups.append(tuple(range(first, len(net.leds))))
-    network = net.build()
+        net.calibrated(
+            rec["camera"],
+            int(rec["visit"]),
+            camera_from_dict(rec["camera_model"], f"calibration of {rec['camera']}"),
+            int(rec["points"]),
+            _pixel_noise(pixel_noise_px, rec, calibrations),
+            per_visit=cameras == "per_visit",
+        )
     index = NetworkIndex(
-        camera_keys=tuple(keys),
-        calibrations=tuple((r["camera"], int(r["visit"])) for r in calibrations),
-        calibration_stops=tuple(groups),
+        camera_keys=tuple(net.camera_keys),
+        calibrations=tuple(net.calibrations),
+        calibration_stops=tuple(net.calibration_stops),
         stations_time=tuple(times),
     )
-    return network, index
+    return net.builder.build(), index
 
 
 def _pixel_noise(

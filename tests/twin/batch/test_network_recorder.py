@@ -12,7 +12,7 @@ from calib.camera import TsaiCameras
 from calib.rotation import rot_z
 from calib.synthetic import paper_camera
 from calib.tsai import tsai_vector
-from twin.batch.network import NetworkRecorder
+from twin.batch.network import Calibrated, NetworkRecorder
 
 CREEP = 0.01
 T = 2
@@ -92,7 +92,7 @@ def test_the_calibrated_visits_stops_hold_the_points_the_trial_used():
 
 def test_a_missed_led_leaves_the_stop_with_its_rows_and_columns():
     rec, stops, survey, _ = _recorded()
-    rec.events = [e for e in rec.events if not (e[0] == "calibrated" and e[2] == 1)]
+    rec.events = [e for e in rec.events if not (isinstance(e, Calibrated) and e.visit == 1)]
     rec.calibrated(
         "cam1",
         1,
