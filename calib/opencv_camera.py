@@ -81,12 +81,6 @@ class OpenCVCamera:
     def cy(self) -> float:
         return float(self.camera_matrix[1, 2])
 
-    def with_pose(self, world2cam_r: ArrayLike, world2cam_t: ArrayLike) -> OpenCVCamera:
-        """The same intrinsics with another pose."""
-        return OpenCVCamera(
-            self.camera_matrix, self.dist_coeffs, world2cam_r, world2cam_t, self.image_size
-        )
-
     def project(self, points_world: ArrayLike) -> NDArray[np.float64]:
         """Project (N, 3) world points (m) to (N, 2) pixels with ``cv2.projectPoints``.
 

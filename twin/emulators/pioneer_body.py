@@ -186,7 +186,3 @@ class PioneerBody:
             self.world.place(
                 self.name, self.truth[:2], float(self.truth[2]), settle=settle, hold_others=True
             )
-
-    def truth_w(self) -> NDArray[np.float64]:
-        """(3,) the true pose in W (x m, y m, yaw rad)."""
-        return self.frame.pose(self.truth)

@@ -19,7 +19,6 @@ from numpy.typing import ArrayLike
 from calib.detection.sequence import SwitchingSequence
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds, MobileBase, TotalStation
 from twin.hal.readings import (
-    CameraImage,
     DriveResult,
     LedObservation,
     LedSwitch,
@@ -113,27 +112,6 @@ class MarkerLedsWrapper(MarkerLeds):
 
     def switch(self, on: Sequence[bool]) -> LedSwitch:
         return self.inner.switch(on)
-
-    def close(self) -> None:
-        self.inner.close()
-
-
-class CameraWrapper(Camera):
-    """A camera that passes every call to ``inner``."""
-
-    def __init__(self, inner: Camera) -> None:
-        self.inner = inner
-
-    @property
-    def name(self) -> str:
-        return self.inner.name
-
-    @property
-    def image_size(self) -> tuple[int, int]:
-        return self.inner.image_size
-
-    def capture(self) -> CameraImage:
-        return self.inner.capture()
 
     def close(self) -> None:
         self.inner.close()

@@ -123,10 +123,6 @@ class _Layout:
             at += widths[child]
         self.size = at
 
-    def station_column(self, k: int) -> int:
-        """First column of station ``k`` (-1 for station 0, which is fixed)."""
-        return -1 if k == 0 else STATION_DOF * (k - 1)
-
     def camera_column(self, c: int | NDArray[np.int64]) -> Any:
         """First column of camera ``c`` (or of each camera of an array)."""
         return self.camera_start + N_TSAI * c

@@ -387,14 +387,3 @@ def evaluate(
         tuple(rejected),
         tuple(reasons),
     )
-
-
-def monte_carlo_leapfrog(
-    config: LeapfrogConfig,
-    n_runs: int,
-    seed: int,
-    solvers: tuple[str, ...] = ("closed_form", "wls"),
-) -> dict[str, LeapfrogResult]:
-    """Simulate ``n_runs`` runs once and evaluate each solver on the same measurements."""
-    data = simulate_leapfrog(config, n_runs, np.random.default_rng(seed))
-    return {solver: evaluate(data, solver) for solver in solvers}

@@ -16,6 +16,7 @@ to write ``DIR/map.png``, ``DIR/map.yaml`` and ``DIR/cameras.yaml``;
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,8 @@ import yaml
 
 RESOLUTION = 0.05
 """Cell size of the map, m (a SLAM map's usual 5 cm)."""
+
+_log = logging.getLogger(__name__)
 
 CORRIDOR = 4.0
 """Corridor width, m (a hospital's main corridor, where beds pass)."""
@@ -381,9 +384,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     else:
         grid, cams = write_floor(args.folder, args.cameras)
-    print(f"wrote {grid} and {cams}")
+    _log.info("wrote %s and %s", grid, cams)
     return 0
 
 
 if __name__ == "__main__":
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
     raise SystemExit(main())

@@ -3,6 +3,7 @@ cameras placed by the rule, the same for the same seed; bad sizes named."""
 
 from __future__ import annotations
 
+import logging
 import math
 
 import cv2
@@ -13,6 +14,7 @@ from twin.planning.sample_floor import (
     OFFICE_CAMERA_HEIGHT,
     OFFICE_TILT_DEG,
     RESOLUTION,
+    main,
     office_floor,
 )
 
@@ -57,3 +59,12 @@ def test_the_same_seed_gives_the_same_floor_and_rough_walls_only_narrow_it():
 def test_bad_office_floors_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         office_floor(**kwargs)
+
+
+def test_the_command_writes_the_floor_and_logs_its_files_without_printing(tmp_path, caplog, capsys):
+    with caplog.at_level(logging.INFO, logger="twin.planning.sample_floor"):
+        assert main([str(tmp_path), "--cameras", "3"]) == 0
+    written = sorted(p.name for p in tmp_path.iterdir())
+    assert written == ["cameras.yaml", "map.png", "map.yaml"]
+    assert caplog.messages == [f"wrote {tmp_path / 'map.yaml'} and {tmp_path / 'cameras.yaml'}"]
+    assert capsys.readouterr().out == ""
