@@ -45,22 +45,30 @@ def _rms(values: np.ndarray) -> float:
     return float(np.sqrt(np.nanmean(values**2)))
 
 
-def test_the_paper_policy_is_the_paper_campaign(hall_env):
-    """The paper's policy in the environment and the batch fidelity's run of the paper's
-    strategy (what ``twin montecarlo --fidelity batch --strategy paper`` runs) give the
-    same camera errors: RMS per visit within 15 % over 300 episodes."""
+@pytest.fixture(scope="module")
+def paper_in_env(hall_env):
+    """Three episodes of the paper's policy on the hall (their moves and camera errors, by
+    trial seed), and their plan run at once for ``TRIALS`` trials whose first are theirs:
+    the trial seeds and the outcome. Shared by the tests that compare the paper's policy
+    with the campaign and with another formation."""
     env = hall_env
     episodes = {}
     for seed in range(3):
         moves, _ = play(env, seed, "paper")
         errors = {k: v.position_error[0] for k, v in env.batch.visits.items()}
         episodes[env.trial_seed] = (moves, errors)
+    seeds = [*episodes, *range(1, TRIALS - len(episodes) + 1)]
+    return episodes, seeds, BatchRun(env.plan, seeds).run()
+
+
+def test_the_paper_policy_is_the_paper_campaign(paper_in_env):
+    """The paper's policy in the environment and the batch fidelity's run of the paper's
+    strategy (what ``twin montecarlo --fidelity batch --strategy paper`` runs) give the
+    same camera errors: RMS per visit within 15 % over 300 episodes."""
+    episodes, _, in_env = paper_in_env
     # The paper's moves do not depend on the noise: every episode plays the same campaign,
     # so 300 episodes are the episode's plan run for 300 trials at once.
     assert len({tuple(m) for m, _ in episodes.values()}) == 1
-    plan = env.plan
-    seeds = [*episodes, *range(1, TRIALS - len(episodes) + 1)]
-    in_env = BatchRun(plan, seeds).run()
     for k, (_, errors) in enumerate(episodes.values()):
         for visit, error in errors.items():
             assert in_env.calibrations[visit].position_error[k] == pytest.approx(error, rel=1e-9)
@@ -74,19 +82,21 @@ def test_the_paper_policy_is_the_paper_campaign(hall_env):
         assert ours == pytest.approx(theirs, rel=0.15), visit
 
 
-def test_in_line_beats_side_by_side_on_the_hall(hall_env):
+def test_in_line_beats_side_by_side_on_the_hall(hall_env, paper_in_env):
     """The parent's error after the hall's campaign: children in line ahead against side by
-    side (the CPS benchmark's finding; about 4x here). 300 trials of each; a rank test at
-    1e-12 and a median ratio of 2 leave a wide margin (measured: p = 1e-54, ratio 4.0)."""
-    errors = {}
-    for policy in ("paper", "side_by_side"):
-        play(hall_env, 0, policy)
-        plan = hall_env.plan
-        moves, _ = play(hall_env, 1, policy)
-        assert moves == play(hall_env, 2, policy)[0]  # the moves do not depend on the noise
-        outcome = BatchRun(plan, range(TRIALS)).run()
-        errors[policy] = np.linalg.norm(outcome.parent_error, axis=1)
-    in_line, side = errors["paper"], errors["side_by_side"]
+    side (the CPS benchmark's finding; about 4x here). 300 trials of each, on the same trial
+    seeds; a rank test at 1e-12 and a median ratio of 2 leave a wide margin (measured:
+    p = 1e-54, ratio 4.0)."""
+    episodes, seeds, paper = paper_in_env
+    assert len({tuple(m) for m, _ in episodes.values()}) == 1  # the moves ignore the noise
+    play(hall_env, 0, "side_by_side")
+    plan = hall_env.plan
+    moves, _ = play(hall_env, 1, "side_by_side")
+    assert moves == play(hall_env, 2, "side_by_side")[0]
+    side_by_side = BatchRun(plan, seeds).run()
+    in_line = np.linalg.norm(paper.parent_error, axis=1)
+    side = np.linalg.norm(side_by_side.parent_error, axis=1)
+    assert len(in_line) == len(side) == TRIALS
     assert stats.mannwhitneyu(in_line, side, alternative="less").pvalue < 1e-12
     assert np.median(side) > 2.0 * np.median(in_line)
 
