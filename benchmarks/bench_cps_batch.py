@@ -38,10 +38,8 @@ from twin.instruments.polar import polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.localization.leapfrog import CHILDREN, LeapfrogConfig, LeapfrogData, simulate_leapfrog
-from twin.localization.observation import ChildObservation
-from twin.localization.observation_batch import ChildObservationBatch
-from twin.localization.sequence import CpsSequence
-from twin.localization.sequence_batch import CpsBatch
+from twin.localization.observation import ChildObservation, ChildObservationBatch
+from twin.localization.sequence import CpsBatch, CpsSequence
 
 SOLVERS = ("closed_form", "wls")
 

@@ -42,7 +42,7 @@ from calib.tsai_lm import TsaiBatchResult, calibrate_tsai_batch
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import MarkerPose, led_positions_batch
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
-from twin.localization.observation_batch import observe_child_batch
+from twin.localization.observation import observe_child_batch
 
 
 @dataclass(frozen=True)

@@ -91,7 +91,8 @@ def chi2_statistic_batch(residuals: ArrayLike, covariances: ArrayLike) -> NDArra
     e = np.asarray(residuals, dtype=float)
     k = e.shape[-1]
     c = np.asarray(covariances, dtype=float) + NUMERICAL_FLOOR**2 * np.eye(k)
-    return np.vecdot(e, np.linalg.solve(c, e[..., None])[..., 0])
+    # A (1, k) @ (k, 1) product per statistic: the dot product chi2_statistic takes.
+    return (e[..., None, :] @ np.linalg.solve(c, e[..., None]))[..., 0, 0]
 
 
 def exceeds_threshold(

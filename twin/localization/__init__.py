@@ -17,11 +17,8 @@
 - :mod:`.adjustment`: the global adjustment of a network (sparse least squares) with its
   covariance.
 
-The same over arrays of T Monte Carlo trials (each trial equals the scalar code on its
-data; what the scalar code raises for one trial is a per-trial flag):
-
-- :mod:`.input_checks_batch`, :mod:`.pose_batch` (``ParentPoseBatch``,
-  ``CpsSolutionBatch``), :mod:`.closed_form_batch`, :mod:`.wls_batch`.
-- :mod:`.observation_batch`: ``ChildObservationBatch`` and ``observe_child_batch``.
-- :mod:`.sequence_batch`: ``CpsBatch``, the joint estimates of T trials.
+Each estimator is written once, over arrays of T Monte Carlo trials (``*_batch``
+functions, ``ParentPoseBatch``, ``CpsSolutionBatch``, ``ChildObservationBatch``,
+``CpsBatch``); the one-trial forms (``solve_wls``, ``observe_child``, ``CpsSequence``) are
+that code at T = 1, raising where it flags a trial.
 """

@@ -20,10 +20,21 @@ A parent step whose children fail the solver's chi-square test raises
 :class:`InconsistentChildrenError` (a child moved between the two measurements, or a wrong
 prism) and leaves the sequence unchanged: the caller can count it, measure again and call
 :meth:`CpsSequence.parent_moved` with the new observations.
+
+:class:`CpsBatch` runs T trials at once: the trials share the children, the solver and the
+order of the steps; each has its own measurements, state ``x`` (T, 4 + 3N) and covariance
+``P`` (T, 4 + 3N, 4 + 3N), updated by its own ``A`` and ``B``, so a trial does not depend
+on the others. What one trial's data make the solver raise, the batch flags and goes on: a
+child that does not fit (:attr:`CpsSolutionBatch.inconsistent`) keeps its solution for the
+caller to count; a horizontal baseline below ``min_baseline`` loses the trial
+(:attr:`CpsBatch.lost`: NaN from then on). The batch keeps no step record (at T trials it
+would be T times the one-trial record); each parent step returns its solutions.
+:class:`CpsSequence` is one trial of it, with the record and the errors.
 """
 
 from __future__ import annotations
 
+import copy
 import enum
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -31,14 +42,17 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.rotation import rot_z
+from calib.rotation import rot_z, rot_z_derivative
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, check_false_alarm_rate
-from twin.localization.closed_form import solve_closed_form
-from twin.localization.input_checks import DEFAULT_MAX_YAW_STD, DEFAULT_MIN_BASELINE
-from twin.localization.observation import ChildObservation
-from twin.localization.pose import CpsSolution, ParentPose
-from twin.localization.propagation import level2world_jacobian
-from twin.localization.wls import solve_wls
+from twin.localization.closed_form import solve_closed_form, solve_closed_form_batch
+from twin.localization.input_checks import (
+    DEFAULT_MAX_YAW_STD,
+    DEFAULT_MIN_BASELINE,
+    block_diagonal,
+)
+from twin.localization.observation import ChildObservation, ChildObservationBatch
+from twin.localization.pose import CpsSolution, CpsSolutionBatch, ParentPose, ParentPoseBatch
+from twin.localization.wls import solve_wls, solve_wls_batch
 
 SOLVERS = ("wls", "closed_form")
 
@@ -137,17 +151,23 @@ def add_creep(covariance: NDArray[np.float64], known: NDArray[np.bool_], creep: 
             covariance[..., i, i] += creep**2
 
 
-class CpsSequence:
-    """Joint estimate of a parent and its children along a CPS run, with the step record.
+def _transpose(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.swapaxes(a, -1, -2)
+
+
+class CpsBatch:
+    """Joint estimates of a parent and its children along a CPS run, in T trials.
 
     Args:
-        children: the children's names, in state order.
-        initial_pose: the parent's pose at its first station; default the world origin
-            with zero covariance (the world is the parent's first levelled frame).
+        children: the children's names, in state order (the same in every trial).
+        n_trials: number of trials T.
+        initial_pose: the parent's pose at its first station: one :class:`ParentPose` for
+            every trial, a :class:`ParentPoseBatch` of T poses, or None for the world
+            origin with zero covariance.
         solver: ``"wls"`` (any number >= 2 of children) or ``"closed_form"`` (exactly two).
         min_baseline, max_yaw_std: passed to the solver (see :mod:`.input_checks`).
-        false_alarm_rate: passed to the solver: probability that consistent data raise
-            :class:`InconsistentChildrenError` at a parent step; None switches it off.
+        false_alarm_rate: passed to the solver: probability that consistent data are
+            flagged inconsistent at a parent step; None switches the test off.
         child_creep: how far a standing child may move on each horizontal axis while the
             parent drives, m (standard deviation): added to every placed child's position
             covariance at each parent step, before the solve (default 0).
@@ -156,7 +176,8 @@ class CpsSequence:
     def __init__(
         self,
         children: Sequence[str],
-        initial_pose: ParentPose | None = None,
+        n_trials: int,
+        initial_pose: ParentPose | ParentPoseBatch | None = None,
         *,
         solver: str = "wls",
         min_baseline: float = DEFAULT_MIN_BASELINE,
@@ -165,7 +186,16 @@ class CpsSequence:
         child_creep: float = 0.0,
     ) -> None:
         names = check_children_and_solver(children, solver)
-        pose = initial_pose if initial_pose is not None else ParentPose(0.0, np.zeros(3))
+        if n_trials < 1:
+            raise ValueError(f"n_trials must be at least 1, got {n_trials}")
+        if initial_pose is None:
+            initial_pose = ParentPose(0.0, np.zeros(3))
+        if isinstance(initial_pose, ParentPose):
+            initial_pose = ParentPoseBatch.repeat(initial_pose, n_trials)
+        if initial_pose.n_trials != n_trials:
+            raise ValueError(
+                f"initial_pose has {initial_pose.n_trials} trials, the batch {n_trials}"
+            )
         self._children = names
         self._index = {name: i for i, name in enumerate(names)}
         self._solver = solver
@@ -174,14 +204,13 @@ class CpsSequence:
         self._false_alarm_rate = check_false_alarm_rate(false_alarm_rate)
         self._creep = check_creep(child_creep)
         n = 4 + 3 * len(names)
-        self._state = np.full(n, np.nan)
-        self._state[:4] = pose.vector
-        self._covariance = np.zeros((n, n))
-        self._covariance[:4, :4] = pose.covariance
+        self._state = np.full((n_trials, n), np.nan)
+        self._state[:, :4] = initial_pose.vector
+        self._covariance = np.zeros((n_trials, n, n))
+        self._covariance[:, :4, :4] = initial_pose.covariance
         self._known = np.zeros(len(names), dtype=bool)
-        self._time = pose.timestamp
-        self._steps: list[CpsStep] = []
-        self._parent: ParentPose | None = None  # the pose of the current state, once built
+        self._time = initial_pose.timestamp
+        self._n_steps = 0
 
     # -- read access ---------------------------------------------------------------------
     @property
@@ -195,23 +224,316 @@ class CpsSequence:
         return self._solver
 
     @property
+    def n_trials(self) -> int:
+        """Number of trials T."""
+        return self._state.shape[0]
+
+    @property
+    def n_steps(self) -> int:
+        """Number of steps taken so far (children and parent steps)."""
+        return self._n_steps
+
+    @property
+    def timestamp(self) -> float:
+        """Time of the last step, s."""
+        return self._time
+
+    @property
+    def parent(self) -> ParentPoseBatch:
+        """The parent's current pose estimates with their covariances."""
+        return ParentPoseBatch(
+            self._state[:, 0], self._state[:, 1:4], self._covariance[:, :4, :4], self._time
+        )
+
+    @property
+    def state(self) -> NDArray[np.float64]:
+        """(T, 4 + 3N) current joint states (NaN for children not yet placed)."""
+        return self._state.copy()
+
+    @property
+    def state_covariance(self) -> NDArray[np.float64]:
+        """(T, 4 + 3N, 4 + 3N) current joint covariances."""
+        return self._covariance.copy()
+
+    @property
+    def lost(self) -> NDArray[np.bool_]:
+        """(T,) True for trials lost to a parent step without a solution (poor geometry)."""
+        return np.isnan(self._state[:, 0])
+
+    @property
+    def children_world(self) -> NDArray[np.float64]:
+        """(T, N, 3) children's world estimates; NaN for children not yet placed."""
+        return self._state[:, 4:].reshape(self.n_trials, -1, 3).copy()
+
+    def child_position(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(T, 3) world positions and (T, 3, 3) covariances of a child's reference point."""
+        k = self._child_index(name)
+        if not self._known[k]:
+            raise ValueError(f"child {name!r} has not been measured yet")
+        s = slice(4 + 3 * k, 7 + 3 * k)
+        return self._state[:, s].copy(), self._covariance[:, s, s].copy()
+
+    # -- steps ---------------------------------------------------------------------------
+    def children_moved(
+        self, observations: Sequence[ChildObservationBatch], timestamp: float | None = None
+    ) -> None:
+        """Children moved and stopped; the parent (not moved) measured them in every trial.
+
+        Each observed child is placed in the world from the parent's current estimates.
+        """
+        obs = self._check_observations(observations, minimum=1)
+        points = np.stack([o.point_level for o in obs], axis=1)  # (T, m, 3)
+        covariances = np.stack([o.covariance for o in obs], axis=1)  # (T, m, 3, 3)
+        self._place([o.child for o in obs], points, covariances)
+        self._advance(obs, timestamp)
+
+    def parent_moved(
+        self, observations: Sequence[ChildObservationBatch], timestamp: float | None = None
+    ) -> CpsSolutionBatch:
+        """The parent moved and measured two or more stationary children; solve its pose.
+
+        Returns:
+            The solutions, with per-trial flags: ``inconsistent`` (the scalar sequence
+            would raise :class:`InconsistentChildrenError`; the solution is kept here),
+            ``poor_geometry`` (no solution: the trial is lost) and ``poor_yaw``.
+        """
+        obs = self._check_observations(observations, minimum=2)
+        prior, cols, world, cov_w = self._parent_problem([o.child for o in obs])
+        level = np.stack([o.point_level for o in obs], axis=1)
+        cov_m = np.stack([o.covariance for o in obs], axis=1)
+        kwargs = self._solver_options(self._stamp(obs, timestamp))
+        if self._solver == "wls":
+            solution = solve_wls_batch(world, level, cov_w, cov_m, **kwargs)
+        else:
+            solution = solve_closed_form_batch(world, level, cov_w, cov_m, **kwargs)
+        self._parent_update(
+            prior,
+            cols,
+            solution.pose.vector,
+            solution.children_jacobian,
+            solution.measurement_jacobian,
+            cov_m,
+        )
+        lost = solution.poor_geometry
+        self._state[lost] = np.nan
+        self._covariance[lost] = np.nan
+        self._advance(obs, timestamp)
+        return solution
+
+    # -- some trials only ----------------------------------------------------------------
+    def trials(self, rows: NDArray[np.intp]) -> CpsBatch:
+        """A batch of the trials ``rows`` (R,), as they stand: its steps change nothing here
+        until :meth:`set_trials` writes them back."""
+        part = copy.copy(self)
+        part._state = self._state[rows]
+        part._covariance = self._covariance[rows]
+        part._known = self._known.copy()
+        return part
+
+    def set_trials(self, rows: NDArray[np.intp], part: CpsBatch) -> None:
+        """Take the trials ``rows`` from ``part`` (made by :meth:`trials` with the same rows
+        and stepped since). The other trials are kept; arrays read before stay as they were."""
+        state, covariance = self._state.copy(), self._covariance.copy()
+        state[rows], covariance[rows] = part._state, part._covariance
+        self._state, self._covariance = state, covariance
+        self._known |= part._known
+        self._time = max(self._time, part._time)
+        self._n_steps = max(self._n_steps, part._n_steps)
+
+    def reset_trials(self, rows: NDArray[np.intp], initial_pose: ParentPose | None = None) -> None:
+        """Start the trials ``rows`` again from ``initial_pose`` (default the world origin
+        with zero covariance), no child placed. A child placed in another trial stays
+        known to the batch: place it again in these trials before a parent step."""
+        pose = ParentPose(0.0, np.zeros(3)) if initial_pose is None else initial_pose
+        state, covariance = self._state.copy(), self._covariance.copy()
+        state[rows] = np.nan
+        state[rows, :4] = pose.vector
+        covariance[rows] = 0.0
+        covariance[np.ix_(rows, range(4), range(4))] = pose.covariance
+        self._state, self._covariance = state, covariance
+
+    # -- internals -----------------------------------------------------------------------
+    def _place(
+        self, names: Sequence[str], points: NDArray[np.float64], covariances: NDArray[np.float64]
+    ) -> None:
+        """Place the children ``names`` (m) in the world from their (T, m, 3) points in the
+        levelled frame, m, with (T, m, 3, 3) covariances, m^2."""
+        yaw = np.ascontiguousarray(self._state[:, 0])
+        t = self._state[:, 1:4]
+        rot, rot_dot = rot_z(yaw), rot_z_derivative(yaw)
+        n_trials, n = self._state.shape
+        a = np.tile(np.eye(n), (n_trials, 1, 1))
+        b = np.zeros((n_trials, n, 3 * len(names)))
+        lever = points @ _transpose(rot_dot)  # d(R p + t) / d yaw of every point
+        x_new = self._state.copy()
+        for j, name in enumerate(names):
+            k = self._index[name]
+            s = slice(4 + 3 * k, 7 + 3 * k)
+            x_new[:, s] = (rot @ points[:, j, :, None])[..., 0] + t
+            a[:, s, :] = 0.0
+            a[:, s, 0] = lever[:, j]
+            a[:, s, 1:4] = np.eye(3)
+            b[:, s, 3 * j : 3 * j + 3] = rot
+            self._known[k] = True
+        self._commit(x_new, a, b, block_diagonal(covariances))
+
+    def _parent_problem(
+        self, names: Sequence[str]
+    ) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+        """What a parent step that measured the children ``names`` solves: the prior
+        covariance (T, n, n) with the children's creep, the state columns of the children,
+        their (T, m, 3) world positions and (T, 3m, 3m) joint covariance."""
+        check_step_children(self._index, names, 2)
+        ks = [self._index[name] for name in names]
+        unknown = [name for name, k in zip(names, ks, strict=True) if not self._known[k]]
+        if unknown:
+            raise ValueError(
+                f"children {unknown} were never placed in the world; measure them with "
+                "children_moved before the parent moves"
+            )
+        # The children may have crept while the parent drove; kept only if the step succeeds.
+        prior = self._covariance.copy()
+        add_creep(prior, self._known, self._creep)
+        cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
+        world = self._state[:, cols].reshape(self.n_trials, -1, 3)
+        return prior, cols, world, prior[:, cols][:, :, cols]
+
+    def _solver_options(self, stamp: float) -> dict[str, float | None]:
+        return {
+            "timestamp": stamp,
+            "min_baseline": self._min_baseline,
+            "max_yaw_std": self._max_yaw_std,
+            "false_alarm_rate": self._false_alarm_rate,
+        }
+
+    def _parent_update(
+        self,
+        prior: NDArray[np.float64],
+        cols: NDArray[np.intp],
+        pose: NDArray[np.float64],
+        children_jacobian: NDArray[np.float64],
+        measurement_jacobian: NDArray[np.float64],
+        cov_m: NDArray[np.float64],
+    ) -> None:
+        """Take the solved (T, 4) parent poses, with their (T, 4, 3m) Jacobians and the
+        (T, m, 3, 3) measurement covariances, into the state from the ``prior``."""
+        n_trials, n = self._state.shape
+        a = np.tile(np.eye(n), (n_trials, 1, 1))
+        a[:, :4, :] = 0.0
+        a[:, :4, cols] = children_jacobian
+        b = np.zeros((n_trials, n, cols.size))
+        b[:, :4, :] = measurement_jacobian
+        x_new = self._state.copy()
+        x_new[:, :4] = pose
+        self._covariance = prior
+        self._commit(x_new, a, b, block_diagonal(cov_m))
+
+    def _child_index(self, name: str) -> int:
+        return child_index(self._index, name)
+
+    def _check_observations(
+        self, observations: Sequence[ChildObservationBatch], minimum: int
+    ) -> tuple[ChildObservationBatch, ...]:
+        obs = tuple(observations)
+        check_step_children(self._index, [o.child for o in obs], minimum)
+        for o in obs:
+            if o.n_trials != self.n_trials:
+                raise ValueError(
+                    f"the observation of {o.child!r} has {o.n_trials} trials, the batch "
+                    f"{self.n_trials}"
+                )
+        return obs
+
+    def _stamp(
+        self, obs: Sequence[ChildObservation | ChildObservationBatch], timestamp: float | None
+    ) -> float:
+        return float(max(o.timestamp for o in obs)) if timestamp is None else float(timestamp)
+
+    def _commit(self, x_new: NDArray, a: NDArray, b: NDArray, noise: NDArray) -> None:
+        # Children not placed yet have NaN state and zero covariance rows; A keeps them so.
+        p_new = a @ self._covariance @ _transpose(a) + b @ noise @ _transpose(b)
+        self._state = x_new
+        self._covariance = 0.5 * (p_new + _transpose(p_new))
+
+    def _advance(
+        self, obs: Sequence[ChildObservation | ChildObservationBatch], timestamp: float | None
+    ) -> None:
+        self._time = self._stamp(obs, timestamp)
+        self._n_steps += 1
+
+
+class CpsSequence:
+    """Joint estimate of a parent and its children along a CPS run, with the step record:
+    one trial of :class:`CpsBatch`, raising where the batch flags.
+
+    Args:
+        children: the children's names, in state order.
+        initial_pose: the parent's pose at its first station; default the world origin
+            with zero covariance (the world is the parent's first levelled frame).
+        solver: ``"wls"`` (any number >= 2 of children) or ``"closed_form"`` (exactly two).
+        min_baseline, max_yaw_std: passed to the solver (see :mod:`.input_checks`).
+        false_alarm_rate: passed to the solver: probability that consistent data raise
+            :class:`InconsistentChildrenError` at a parent step; None switches it off.
+        child_creep: as :class:`CpsBatch`'s, m.
+    """
+
+    def __init__(
+        self,
+        children: Sequence[str],
+        initial_pose: ParentPose | None = None,
+        *,
+        solver: str = "wls",
+        min_baseline: float = DEFAULT_MIN_BASELINE,
+        max_yaw_std: float = DEFAULT_MAX_YAW_STD,
+        false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+        child_creep: float = 0.0,
+    ) -> None:
+        self._batch = CpsBatch(
+            children,
+            1,
+            initial_pose,
+            solver=solver,
+            min_baseline=min_baseline,
+            max_yaw_std=max_yaw_std,
+            false_alarm_rate=false_alarm_rate,
+            child_creep=child_creep,
+        )
+        self._steps: list[CpsStep] = []
+        self._parent: ParentPose | None = None  # the pose of the current state, once built
+
+    # -- read access ---------------------------------------------------------------------
+    @property
+    def children(self) -> tuple[str, ...]:
+        """The children's names in state order."""
+        return self._batch.children
+
+    @property
+    def solver(self) -> str:
+        """The CPS solver used for parent steps."""
+        return self._batch.solver
+
+    @property
     def parent(self) -> ParentPose:
         """The parent's current pose estimate with its covariance."""
         if self._parent is None:
+            batch = self._batch
             self._parent = ParentPose(
-                self._state[0], self._state[1:4], self._covariance[:4, :4].copy(), self._time
+                batch._state[0, 0],
+                batch._state[0, 1:4],
+                batch._covariance[0, :4, :4].copy(),
+                batch.timestamp,
             )
         return self._parent
 
     @property
     def state(self) -> NDArray[np.float64]:
         """(4 + 3N,) current joint state (NaN for children not yet placed)."""
-        return self._state.copy()
+        return self._batch._state[0].copy()
 
     @property
     def state_covariance(self) -> NDArray[np.float64]:
         """(4 + 3N, 4 + 3N) current joint covariance."""
-        return self._covariance.copy()
+        return self._batch._covariance[0].copy()
 
     @property
     def steps(self) -> tuple[CpsStep, ...]:
@@ -220,11 +542,8 @@ class CpsSequence:
 
     def child_position(self, name: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(3,) world position and (3, 3) covariance of a child's reference point."""
-        k = self._child_index(name)
-        if not self._known[k]:
-            raise ValueError(f"child {name!r} has not been measured yet")
-        s = slice(4 + 3 * k, 7 + 3 * k)
-        return self._state[s].copy(), self._covariance[s, s].copy()
+        position, covariance = self._batch.child_position(name)
+        return position[0], covariance[0]
 
     # -- steps ---------------------------------------------------------------------------
     def children_moved(
@@ -234,26 +553,13 @@ class CpsSequence:
 
         Each observed child is placed in the world from the parent's current estimate.
         """
-        obs = self._check_observations(observations, minimum=1)
-        yaw, t = self._state[0], self._state[1:4]
-        rot = rot_z(yaw)
-        jac_parent = level2world_jacobian(yaw, [o.point_level for o in obs])
-        n = self._state.size
-        a = np.eye(n)
-        b = np.zeros((n, 3 * len(obs)))
-        noise = np.zeros((3 * len(obs), 3 * len(obs)))
-        x_new = self._state.copy()
-        for j, o in enumerate(obs):
-            k = self._index[o.child]
-            s = slice(4 + 3 * k, 7 + 3 * k)
-            x_new[s] = rot @ o.point_level + t
-            a[s, :] = 0.0
-            a[s, :4] = jac_parent[j]
-            b[s, 3 * j : 3 * j + 3] = rot
-            noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
-            self._known[k] = True
-        self._commit(x_new, a, b, noise)
-        return self._record(StepKind.CHILDREN_MOVED, obs, tuple(o.child for o in obs), timestamp)
+        obs = tuple(observations)
+        names = [o.child for o in obs]
+        check_step_children(self._batch._index, names, 1)
+        points = np.array([o.point_level for o in obs])[None]
+        self._batch._place(names, points, np.array([o.covariance for o in obs])[None])
+        self._batch._advance(obs, timestamp)
+        return self._record(StepKind.CHILDREN_MOVED, obs, tuple(names))
 
     def parent_moved(
         self, observations: Sequence[ChildObservation], timestamp: float | None = None
@@ -264,88 +570,43 @@ class CpsSequence:
             InconsistentChildrenError: the children do not fit their world positions (see
                 the module text); nothing is recorded and the state is unchanged.
         """
-        obs = self._check_observations(observations, minimum=2)
-        ks = [self._index[o.child] for o in obs]
-        unknown = [o.child for o, k in zip(obs, ks, strict=True) if not self._known[k]]
-        if unknown:
-            raise ValueError(
-                f"children {unknown} were never placed in the world; measure them with "
-                "children_moved before the parent moves"
-            )
-        # The children may have crept while the parent drove; kept only if the step succeeds.
-        prior = self._covariance.copy()
-        add_creep(prior, self._known, self._creep)
-        cols = np.concatenate([np.arange(4 + 3 * k, 7 + 3 * k) for k in ks])
-        world = self._state[cols].reshape(-1, 3)
+        obs = tuple(observations)
+        batch = self._batch
+        prior, cols, world, cov_w = batch._parent_problem([o.child for o in obs])
         level = np.array([o.point_level for o in obs])
-        cov_w = prior[np.ix_(cols, cols)]
         cov_m = np.array([o.covariance for o in obs])
-        stamp = self._stamp(obs, timestamp)
-        kwargs = {
-            "timestamp": stamp,
-            "min_baseline": self._min_baseline,
-            "max_yaw_std": self._max_yaw_std,
-            "false_alarm_rate": self._false_alarm_rate,
-        }
-        if self._solver == "wls":
-            solution = solve_wls(world, level, cov_w, cov_m, **kwargs)
-        else:
-            solution = solve_closed_form(world, level, cov_w, cov_m, **kwargs)
-        n = self._state.size
-        a = np.eye(n)
-        a[:4, :] = 0.0
-        a[:4, cols] = solution.children_jacobian
-        b = np.zeros((n, 3 * len(obs)))
-        b[:4, :] = solution.measurement_jacobian
-        noise = np.zeros((3 * len(obs), 3 * len(obs)))
-        for j, o in enumerate(obs):
-            noise[3 * j : 3 * j + 3, 3 * j : 3 * j + 3] = o.covariance
-        x_new = self._state.copy()
-        x_new[:4] = solution.pose.vector
-        self._covariance = prior
-        self._commit(x_new, a, b, noise)
-        return self._record(StepKind.PARENT_MOVED, obs, ("parent",), stamp, solution)
+        kwargs = batch._solver_options(batch._stamp(obs, timestamp))
+        solve = solve_wls if batch.solver == "wls" else solve_closed_form
+        solution = solve(world[0], level, cov_w[0], cov_m, **kwargs)
+        batch._parent_update(
+            prior,
+            cols,
+            solution.pose.vector[None],
+            solution.children_jacobian[None],
+            solution.measurement_jacobian[None],
+            cov_m[None],
+        )
+        batch._advance(obs, timestamp)
+        return self._record(StepKind.PARENT_MOVED, obs, ("parent",), solution)
 
     # -- internals -----------------------------------------------------------------------
-    def _child_index(self, name: str) -> int:
-        return child_index(self._index, name)
-
-    def _check_observations(
-        self, observations: Sequence[ChildObservation], minimum: int
-    ) -> tuple[ChildObservation, ...]:
-        obs = tuple(observations)
-        check_step_children(self._index, [o.child for o in obs], minimum)
-        return obs
-
-    def _stamp(self, obs: tuple[ChildObservation, ...], timestamp: float | None) -> float:
-        return float(max(o.timestamp for o in obs)) if timestamp is None else float(timestamp)
-
-    def _commit(self, x_new: NDArray, a: NDArray, b: NDArray, noise: NDArray) -> None:
-        # Children not placed yet have NaN state and zero covariance rows; A keeps them so.
-        p_new = a @ self._covariance @ a.T + b @ noise @ b.T
-        self._state = x_new
-        self._covariance = 0.5 * (p_new + p_new.T)
-        self._parent = None
-
     def _record(
         self,
         kind: StepKind,
         obs: tuple[ChildObservation, ...],
         moved: tuple[str, ...],
-        timestamp: float | None,
         solution: CpsSolution | None = None,
     ) -> CpsStep:
-        self._time = self._stamp(obs, timestamp)
         self._parent = None
         step = CpsStep(
             index=len(self._steps),
             kind=kind,
-            timestamp=self._time,
+            timestamp=self._batch.timestamp,
             moved=moved,
             observations=obs,
             parent=self.parent,
-            children_world=self._state[4:].reshape(-1, 3).copy(),
-            state_covariance=self._covariance.copy(),
+            children_world=self.state[4:].reshape(-1, 3),
+            state_covariance=self.state_covariance,
             solution=solution,
         )
         self._steps.append(step)

@@ -18,6 +18,12 @@ degrees of freedom for consistent data. Above its quantile at ``false_alarm_rate
 moved between the two measurements, or a wrong prism was locked. Gauss-Newton that stops
 at ``max_iterations`` before its step tolerance raises :class:`ConvergenceWarning` and
 marks the solution ``converged=False``.
+
+:func:`solve_wls_batch` solves T trials at once: each trial iterates until its own step
+norm falls below ``tolerance`` and is then left alone while the others go on, so a trial's
+result does not depend on the others. What is wrong with one trial's data is a flag of
+:class:`CpsSolutionBatch`; :func:`solve_wls` is the one-trial form, which raises and warns
+where the batch flags.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from calib.rotation import rot_z, rot_z_derivative, wrap_angle
 from twin.instruments.consistency import (
     DEFAULT_FALSE_ALARM_RATE,
     check_false_alarm_rate,
+    exceeds_threshold,
     raise_if_inconsistent,
 )
 from twin.instruments.errors import InconsistentChildrenError
@@ -39,43 +46,60 @@ from twin.localization.input_checks import (
     DEFAULT_MIN_BASELINE,
     ConvergenceWarning,
     check_covariance,
-    check_cps_input,
+    check_cps_input_batch,
+    check_cps_pair,
     check_measurement_covariances,
+    coincide_message,
+    poor_geometry,
+    substitute_trials,
 )
-from twin.localization.pose import CpsSolution, ParentPose, warn_if_poor
+from twin.localization.pose import CpsSolution, CpsSolutionBatch, ParentPoseBatch, warn_if_poor
 
 
-def procrustes_yaw(
+def procrustes_yaw_batch(
     children_world: NDArray[np.float64], children_level: NDArray[np.float64]
-) -> float:
-    """Unweighted 2D Procrustes yaw, rad, from (N, 3) world and levelled positions."""
-    w = children_world[:, :2] - children_world[:, :2].mean(axis=0)
-    m = children_level[:, :2] - children_level[:, :2].mean(axis=0)
-    cross = np.sum(m[:, 0] * w[:, 1] - m[:, 1] * w[:, 0])
-    dot = np.sum(m[:, 0] * w[:, 0] + m[:, 1] * w[:, 1])
-    return float(np.arctan2(cross, dot))
+) -> NDArray[np.float64]:
+    """(T,) unweighted 2D Procrustes yaws, rad, from (T, N, 3) world and levelled points."""
+    w = children_world[..., :2] - children_world[..., :2].mean(axis=-2, keepdims=True)
+    m = children_level[..., :2] - children_level[..., :2].mean(axis=-2, keepdims=True)
+    cross = np.sum(m[..., 0] * w[..., 1] - m[..., 1] * w[..., 0], axis=-1)
+    dot = np.sum(m[..., 0] * w[..., 0] + m[..., 1] * w[..., 1], axis=-1)
+    return np.arctan2(cross, dot)
+
+
+def _transpose(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.swapaxes(a, -1, -2)
 
 
 def _residual_system(
-    yaw: float,
+    yaw: NDArray[np.float64],
     t: NDArray[np.float64],
     world: NDArray[np.float64],
     level: NDArray[np.float64],
     cov_world: NDArray[np.float64],
     cov_level: NDArray[np.float64],
+    check: bool = False,
 ) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
-    """Residual (3N,), Jacobian (3N, 4), residual covariance S (3N, 3N), S^-1 J and
-    blockdiag(Rz) (3N, 3N) at (yaw, t)."""
-    n = world.shape[0]
+    """Residual (T, 3N), Jacobian (T, 3N, 4), residual covariance S (T, 3N, 3N), S^-1 J
+    and blockdiag(Rz) (T, 3N, 3N) at (yaw (T,), t (T, 3)); ``check``: raise ValueError
+    unless every S is positive definite."""
+    n_trials, n = world.shape[:2]
     rot = rot_z(yaw)
-    big_r = np.zeros((3 * n, 3 * n))
+    big_r = np.zeros((n_trials, 3 * n, 3 * n))
     for i in range(n):
-        big_r[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = rot
-    s = cov_world + big_r @ cov_level @ big_r.T
-    r = (world - level @ rot.T - t).reshape(-1)
-    jac = np.empty((3 * n, 4))
-    jac[:, 0] = -(level @ rot_z_derivative(yaw).T).reshape(-1)
-    jac[:, 1:] = np.tile(-np.eye(3), (n, 1))
+        big_r[:, 3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = rot
+    s = cov_world + big_r @ cov_level @ _transpose(big_r)
+    r = (world - level @ _transpose(rot) - t[:, None, :]).reshape(n_trials, 3 * n)
+    jac = np.empty((n_trials, 3 * n, 4))
+    jac[:, :, 0] = -(level @ _transpose(rot_z_derivative(yaw))).reshape(n_trials, 3 * n)
+    jac[:, :, 1:] = np.tile(-np.eye(3), (n, 1))
+    if check:
+        _check_positive_definite(s)
+    return r, jac, s, np.linalg.solve(s, jac), big_r
+
+
+def _check_positive_definite(s: NDArray[np.float64]) -> None:
+    # Cholesky of a stack raises for the first matrix that is not positive definite.
     try:
         np.linalg.cholesky(s)
     except np.linalg.LinAlgError:
@@ -83,7 +107,142 @@ def _residual_system(
             "the residual covariance Cov(children_world) + Cov(measurements) is not positive "
             "definite; give each child a non-zero covariance"
         ) from None
-    return r, jac, s, np.linalg.solve(s, jac), big_r
+
+
+def _solve(
+    w: NDArray[np.float64],
+    m: NDArray[np.float64],
+    cw: NDArray[np.float64],
+    cm: NDArray[np.float64],
+    timestamp: float,
+    max_iterations: int,
+    tolerance: float,
+    min_baseline: float,
+    max_yaw_std: float,
+    rate: float | None,
+) -> tuple[CpsSolutionBatch, NDArray[np.float64]]:
+    """Gauss-Newton of checked (T, N, 3) points and (T, 3N, 3N) covariances; returns the
+    solutions and each trial's last step norm (rad and m)."""
+    n_trials, n = w.shape[:2]
+    baseline, bad = poor_geometry(w, m, min_baseline)
+    w, m, cw, cm = substitute_trials(bad, w, m, cw, cm)
+
+    yaw = procrustes_yaw_batch(w, m)
+    t = np.mean(w - m @ _transpose(rot_z(yaw)), axis=-2)
+    iterations = np.zeros(n_trials, dtype=np.int64)
+    converged = np.zeros(n_trials, dtype=bool)
+    step_norm = np.full(n_trials, np.inf)
+    active = np.arange(n_trials)
+    for iteration in range(1, max_iterations + 1):
+        # Every trial still iterating: slices, not copies.
+        a = slice(None) if active.size == n_trials else active
+        r, jac, _, wj, _ = _residual_system(
+            yaw[a], t[a], w[a], m[a], cw[a], cm[a], check=iteration == 1
+        )
+        step = -np.linalg.solve(_transpose(jac) @ wj, _transpose(wj) @ r[..., None])[..., 0]
+        yaw[a] = wrap_angle(yaw[a] + step[:, 0])
+        t[a] = t[a] + step[:, 1:]
+        iterations[a] = iteration
+        # sqrt of a (1, 4) @ (4, 1) product: np.linalg.norm of one step, to the last bit.
+        step_norm[a] = np.sqrt(step[:, None, :] @ step[:, :, None])[:, 0, 0]
+        done = step_norm[active] < tolerance
+        converged[active[done]] = True
+        active = active[~done]
+        if active.size == 0:
+            break
+
+    r, jac, s, wj, big_r = _residual_system(yaw, t, w, m, cw, cm)
+    # (T, 4, 3N) gain (J^T S^-1 J)^-1 J^T S^-1
+    gain = np.linalg.solve(_transpose(jac) @ wj, _transpose(wj))
+    g_world = -gain
+    g_level = gain @ big_r
+    cov = g_world @ cw @ _transpose(g_world) + g_level @ cm @ _transpose(g_level)
+    cov = 0.5 * (cov + _transpose(cov))
+    # A (1, 3N) @ (3N, 1) product per trial: the dot product of one residual.
+    chi2 = (r[:, None, :] @ np.linalg.solve(s, r[..., None]))[:, 0, 0]
+    for arr in (yaw, t, cov, g_world, g_level, chi2):
+        arr[bad] = np.nan
+    pose = ParentPoseBatch(yaw, t, cov, timestamp)
+    dof = 3 * n - 4
+    solution = CpsSolutionBatch(
+        pose=pose,
+        method="wls",
+        children_jacobian=g_world,
+        measurement_jacobian=g_level,
+        baseline=baseline,
+        chi2=chi2,
+        dof=dof,
+        iterations=iterations,
+        converged=converged,
+        inconsistent=exceeds_threshold(chi2, dof, rate) & ~bad,
+        poor_geometry=bad,
+        poor_yaw=pose.yaw_std > max_yaw_std,
+    )
+    return solution, step_norm
+
+
+def _check_iterations(max_iterations: int) -> None:
+    if max_iterations < 1:
+        raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
+
+
+def solve_wls_batch(
+    children_world: ArrayLike,
+    children_level: ArrayLike,
+    cov_children_world: ArrayLike,
+    cov_measurements: ArrayLike,
+    *,
+    timestamp: float = 0.0,
+    max_iterations: int = 20,
+    tolerance: float = 1e-13,
+    min_baseline: float = DEFAULT_MIN_BASELINE,
+    max_yaw_std: float = DEFAULT_MAX_YAW_STD,
+    false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
+) -> CpsSolutionBatch:
+    """Solve the parent's pose from N >= 2 children in each of T trials.
+
+    Args:
+        children_world: (T, N, 3) children's world positions, m.
+        children_level: (T, N, 3) the children measured in the parent's levelled frame, m.
+        cov_children_world: (T, 3N, 3N) joint covariance of the world positions, m^2.
+        cov_measurements: (T, N, 3, 3) covariance of each measurement, m^2.
+        timestamp: time of the solutions, s.
+        max_iterations, tolerance: Gauss-Newton stop of each trial (step norm, rad and m).
+        min_baseline: smallest accepted horizontal baseline, m.
+        max_yaw_std: predicted yaw std, rad, above which ``poor_yaw`` is set.
+        false_alarm_rate: probability that consistent data set ``inconsistent``; None
+            switches the test off.
+
+    Returns:
+        The solutions with covariance, Jacobians and the chi-square of the residuals
+        (expected value 3N - 4 when the covariances are right), and the flags
+        ``inconsistent``, ``poor_geometry`` (no solution: NaN) and ``poor_yaw``.
+
+    Raises:
+        ValueError: wrong shapes, a covariance that is not symmetric positive
+            semidefinite, or a residual covariance that is not positive definite.
+
+    Warns:
+        ConvergenceWarning: some trials reached ``max_iterations`` before ``tolerance``
+            (once, with their number).
+    """
+    rate = check_false_alarm_rate(false_alarm_rate)
+    _check_iterations(max_iterations)
+    w, m, cw, cm = check_cps_input_batch(
+        children_world, children_level, cov_children_world, cov_measurements
+    )
+    solution, _ = _solve(
+        w, m, cw, cm, timestamp, max_iterations, tolerance, min_baseline, max_yaw_std, rate
+    )
+    if not solution.converged.all():
+        warnings.warn(
+            f"WLS did not converge in {max_iterations} Gauss-Newton iterations in "
+            f"{int(np.count_nonzero(~solution.converged))} of {solution.converged.size} "
+            "trials",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
+    return solution
 
 
 def solve_wls(
@@ -99,20 +258,16 @@ def solve_wls(
     max_yaw_std: float = DEFAULT_MAX_YAW_STD,
     false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
 ) -> CpsSolution:
-    """Solve the parent's pose from N >= 2 children by generalised least squares.
+    """Solve the parent's pose from N >= 2 children by generalised least squares: one
+    trial of :func:`solve_wls_batch`, raising and warning where the batch flags.
 
     Args:
         children_world: (N, 3) children's world positions, m.
         children_level: (N, 3) the children measured in the parent's levelled frame, m.
         cov_children_world: (3N, 3N) joint covariance of the world positions, m^2.
         cov_measurements: (N, 3, 3) covariance of each measurement, m^2.
-        timestamp: time of the solution, s.
-        max_iterations, tolerance: Gauss-Newton stop (step norm in rad and m).
-        min_baseline: smallest accepted horizontal baseline, m.
-        max_yaw_std: predicted yaw std, rad, above which :class:`PoorGeometryWarning` is
-            raised.
-        false_alarm_rate: probability that consistent data raise
-            :class:`InconsistentChildrenError`; None switches the test off.
+        timestamp, max_iterations, tolerance, min_baseline, max_yaw_std,
+            false_alarm_rate: as :func:`solve_wls_batch`'s.
 
     Returns:
         The solution, with covariance, Jacobians and the chi-square of the residuals
@@ -128,59 +283,45 @@ def solve_wls(
 
     Warns:
         ConvergenceWarning: Gauss-Newton reached ``max_iterations`` before ``tolerance``.
+        PoorGeometryWarning: the predicted yaw std exceeds ``max_yaw_std``.
     """
     rate = check_false_alarm_rate(false_alarm_rate)
-    if max_iterations < 1:
-        raise ValueError(f"max_iterations must be at least 1, got {max_iterations}")
-    w, m, baseline = check_cps_input(children_world, children_level, min_baseline)
+    _check_iterations(max_iterations)
+    w, m = check_cps_pair(children_world, children_level)
     n = w.shape[0]
     cw = check_covariance(cov_children_world, 3 * n, "cov_children_world")
     cm = check_measurement_covariances(cov_measurements, n)
-
-    yaw = procrustes_yaw(w, m)
-    t = np.mean(w - m @ rot_z(yaw).T, axis=0)
-    iterations, converged, step_norm = 0, False, np.inf
-    for iterations in range(1, max_iterations + 1):  # noqa: B007
-        r, jac, _, wj, _ = _residual_system(yaw, t, w, m, cw, cm)
-        step = -np.linalg.solve(jac.T @ wj, wj.T @ r)
-        yaw = float(wrap_angle(yaw + step[0]))
-        t = t + step[1:]
-        step_norm = float(np.linalg.norm(step))
-        if step_norm < tolerance:
-            converged = True
-            break
-    if not converged:
+    batch, step_norm = _solve(
+        w[None],
+        m[None],
+        cw[None],
+        cm[None],
+        timestamp,
+        max_iterations,
+        tolerance,
+        min_baseline,
+        max_yaw_std,
+        rate,
+    )
+    if batch.poor_geometry[0]:
+        raise ValueError(coincide_message(batch.baseline[0], min_baseline))
+    if not batch.converged[0]:
         warnings.warn(
             f"WLS did not converge in {max_iterations} Gauss-Newton iterations: last step "
-            f"{step_norm:.3g} (rad and m) above the tolerance {tolerance:g}",
+            f"{step_norm[0]:.3g} (rad and m) above the tolerance {tolerance:g}",
             ConvergenceWarning,
             stacklevel=2,
         )
-
-    r, jac, s, wj, big_r = _residual_system(yaw, t, w, m, cw, cm)
-    gain = np.linalg.solve(jac.T @ wj, wj.T)  # (4, 3N) = (J^T S^-1 J)^-1 J^T S^-1
-    g_world = -gain
-    g_level = gain @ big_r
-    cov = g_world @ cw @ g_world.T + g_level @ cm @ g_level.T
-    solution = CpsSolution(
-        pose=ParentPose(yaw, t, 0.5 * (cov + cov.T), timestamp),
-        method="wls",
-        children_jacobian=g_world,
-        measurement_jacobian=g_level,
-        baseline=baseline,
-        chi2=float(r @ np.linalg.solve(s, r)),
-        dof=3 * n - 4,
-        iterations=iterations,
-        converged=converged,
-    )
-    assert solution.chi2 is not None
-    raise_if_inconsistent(
-        solution.chi2,
-        solution.dof,
-        rate,
-        InconsistentChildrenError,
-        f"the {n} children do not fit their world positions (a child moved or a wrong prism)",
-        solution=solution,
-    )
+    solution = batch.trial(0)
+    if batch.inconsistent[0]:
+        assert solution.chi2 is not None
+        raise_if_inconsistent(
+            solution.chi2,
+            solution.dof,
+            rate,
+            InconsistentChildrenError,
+            f"the {n} children do not fit their world positions (a child moved or a wrong prism)",
+            solution=solution,
+        )
     warn_if_poor(solution, max_yaw_std)
     return solution

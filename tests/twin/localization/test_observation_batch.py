@@ -11,8 +11,7 @@ from twin.instruments.polar import TotalStationMeasurement, polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.tilt import TiltReading
 from twin.instruments.total_station import ARCSEC, InclinometerSpec, TotalStationSpec
-from twin.localization.observation import observe_child
-from twin.localization.observation_batch import ChildObservationBatch, observe_child_batch
+from twin.localization.observation import ChildObservationBatch, observe_child, observe_child_batch
 
 MARKER = MarkerAssembly()
 SPEC, INCL = TotalStationSpec(), InclinometerSpec()

@@ -7,11 +7,9 @@ import pytest
 
 from calib.rotation import rot_z
 from twin.instruments.errors import InconsistentChildrenError
-from twin.localization.closed_form import solve_closed_form
-from twin.localization.closed_form_batch import solve_closed_form_batch
+from twin.localization.closed_form import solve_closed_form, solve_closed_form_batch
 from twin.localization.input_checks import ConvergenceWarning, PoorGeometryWarning
-from twin.localization.wls import solve_wls
-from twin.localization.wls_batch import solve_wls_batch
+from twin.localization.wls import solve_wls, solve_wls_batch
 
 T = 30
 
