@@ -1,4 +1,5 @@
-"""The batched CPS solvers: each trial equals the scalar solver; flags where it raises."""
+"""The CPS solvers over T trials: each trial is the one-trial solver's solution, near the
+truth; the flags are where the one-trial solver raises."""
 
 import warnings
 
@@ -14,9 +15,10 @@ from twin.localization.wls import solve_wls, solve_wls_batch
 T = 30
 
 
-def problem(n_trials, n_children, seed, sigma=2e-3):
+def problem(n_trials, n_children, seed, sigma=2e-3, truth=False):
     """Random parent poses and children with correlated world covariances (as a sequence
-    gives them) and noisy measurements; some trials' children are close together."""
+    gives them) and noisy measurements; some trials' children are close together. With
+    ``truth``, also the true (T,) yaws and (T, 3) translations."""
     rng = np.random.default_rng(seed)
     yaw = rng.uniform(-np.pi, np.pi, n_trials)
     t = rng.uniform(-20, 20, (n_trials, 3))
@@ -27,11 +29,13 @@ def problem(n_trials, n_children, seed, sigma=2e-3):
     cov_m = np.tile(np.eye(3) * sigma**2, (n_trials, n_children, 1, 1))
     level = (world - t[:, None]) @ rot_z(yaw)
     level = level + sigma * rng.standard_normal(level.shape)
+    if truth:
+        return world, level, cov_world, cov_m, yaw, t
     return world, level, cov_world, cov_m
 
 
 def scalar(solve, world, level, cov_world, cov_m, i):
-    """The scalar solution of trial i and whether it warned of poor geometry."""
+    """The one-trial solution of trial i and whether it warned of poor geometry."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         solution = solve(world[i], level[i], cov_world[i], cov_m[i], false_alarm_rate=None)
@@ -50,8 +54,8 @@ def close(actual, expected, rtol=1e-10):
         (solve_wls, solve_wls_batch, 4),
     ],
 )
-def test_each_trial_equals_the_scalar_solver(solve, solve_batch, n_children):
-    world, level, cov_world, cov_m = problem(T, n_children, n_children)
+def test_each_trial_is_the_one_trial_solution_near_the_truth(solve, solve_batch, n_children):
+    world, level, cov_world, cov_m, yaw, t = problem(T, n_children, n_children, truth=True)
     batch = solve_batch(world, level, cov_world, cov_m, timestamp=2.0)
     assert batch.pose.timestamp == 2.0
     assert batch.dof == (2 if solve is solve_closed_form else 3 * n_children - 4)
@@ -67,6 +71,11 @@ def test_each_trial_equals_the_scalar_solver(solve, solve_batch, n_children):
         assert batch.iterations[i] == solution.iterations
         assert batch.poor_yaw[i] == poor
     assert batch.poor_yaw.any()  # the close children
+    # The truth within 5 predicted sigma (the world positions are exact here, so the
+    # predicted covariance, which counts their noise, is the larger).
+    error = np.column_stack([np.sin(batch.pose.yaw - yaw), batch.pose.translation - t])
+    sigma = np.sqrt(np.diagonal(batch.pose.covariance, axis1=1, axis2=2))
+    assert np.all(np.abs(error) < 5 * sigma)
 
 
 @pytest.mark.parametrize("solve_batch", [solve_closed_form_batch, solve_wls_batch])
