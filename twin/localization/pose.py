@@ -206,7 +206,7 @@ class ParentPoseBatch:
 class CpsSolutionBatch:
     """The parent's pose solved from its children in T trials (see :class:`CpsSolution`).
 
-    Where the scalar solvers raise, the batch keeps going and flags the trial:
+    Where the one-trial solvers raise, the batch keeps going and flags the trial:
 
     Attributes:
         pose: the solved poses and their covariances.
@@ -219,13 +219,13 @@ class CpsSolutionBatch:
         dof: its degrees of freedom, 3N - 4 (WLS) or 2 (closed form).
         iterations: (T,) Gauss-Newton iterations of each trial (0 for the closed form).
         converged: (T,) False where Gauss-Newton stopped at its iteration limit.
-        inconsistent: (T,) True where the scalar solver raises
+        inconsistent: (T,) True where the one-trial solver raises
             :class:`InconsistentChildrenError` (chi2 above its quantile at the false-alarm
             rate); the solution is kept.
-        poor_geometry: (T,) True where the scalar solver raises ValueError for a horizontal
+        poor_geometry: (T,) True where the one-trial solver raises ValueError for a horizontal
             baseline below ``min_baseline`` (or NaN inputs): no solution, pose and
             Jacobians are NaN.
-        poor_yaw: (T,) True where the scalar solver warns with
+        poor_yaw: (T,) True where the one-trial solver warns with
             :class:`PoorGeometryWarning` (predicted yaw std above ``max_yaw_std``).
     """
 
@@ -244,7 +244,7 @@ class CpsSolutionBatch:
 
     @property
     def failed(self) -> NDArray[np.bool_]:
-        """(T,) True where the scalar solver raises (inconsistent or poor geometry)."""
+        """(T,) True where the one-trial solver raises (inconsistent or poor geometry)."""
         return self.inconsistent | self.poor_geometry
 
     def trial(self, index: int) -> CpsSolution:

@@ -293,7 +293,7 @@ class CpsBatch:
         """The parent moved and measured two or more stationary children; solve its pose.
 
         Returns:
-            The solutions, with per-trial flags: ``inconsistent`` (the scalar sequence
+            The solutions, with per-trial flags: ``inconsistent`` (:class:`CpsSequence`
             would raise :class:`InconsistentChildrenError`; the solution is kept here),
             ``poor_geometry`` (no solution: the trial is lost) and ``poor_yaw``.
         """
