@@ -49,10 +49,6 @@ from twin.localization.input_checks import (
 from twin.localization.pose import CpsSolution, CpsSolutionBatch, ParentPoseBatch, warn_if_poor
 
 
-def _transpose(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.swapaxes(a, -1, -2)
-
-
 def _perpendicular(d: NDArray[np.float64]) -> NDArray[np.float64]:
     """(T, 3) vectors -> (T, 3) ``(-dy, dx, 0) / (dx^2 + dy^2)``: d atan2(dy, dx) / d d."""
     out = np.zeros(d.shape)
@@ -140,7 +136,8 @@ def closed_form_redundancy_batch(
     dw = children_world[:, 0] - children_world[:, 1]
     dm = children_level[:, 0] - children_level[:, 1]
     lw, lm = np.hypot(dw[:, 0], dw[:, 1]), np.hypot(dm[:, 0], dm[:, 1])
-    e = np.stack([lw - lm, dw[:, 2] - dm[:, 2]], axis=-1)
+    e = np.empty((n_trials, 2))
+    e[:, 0], e[:, 1] = lw - lm, dw[:, 2] - dm[:, 2]
     jac_w = np.zeros((n_trials, 2, 6))
     jac_w[:, 0, :2] = dw[:, :2] / lw[:, None]
     jac_w[:, 0, 3:5] = -dw[:, :2] / lw[:, None]
@@ -149,7 +146,7 @@ def closed_form_redundancy_batch(
     jac_m[:, 0, :2] = -dm[:, :2] / lm[:, None]
     jac_m[:, 0, 3:5] = dm[:, :2] / lm[:, None]
     jac_m[:, 1, 2], jac_m[:, 1, 5] = -1.0, 1.0
-    cov = jac_w @ cov_world @ _transpose(jac_w) + jac_m @ cov_level @ _transpose(jac_m)
+    cov = jac_w @ cov_world @ jac_w.mT + jac_m @ cov_level @ jac_m.mT
     return e, cov
 
 
@@ -169,12 +166,13 @@ def _solve(
     w, m, cw, cm = substitute_trials(bad, w, m, cw, cm)
     yaw, t = closed_form_pose_batch(w, m)
     g_world, g_level = closed_form_jacobians_batch(w, m, yaw)
-    cov = g_world @ cw @ _transpose(g_world) + g_level @ cm @ _transpose(g_level)
-    cov = 0.5 * (cov + _transpose(cov))
+    cov = g_world @ cw @ g_world.mT + g_level @ cm @ g_level.mT
+    cov = 0.5 * (cov + cov.mT)
     mismatch, cov_mismatch = closed_form_redundancy_batch(w, m, cw, cm)
     chi2 = chi2_statistic_batch(mismatch, cov_mismatch)
-    for arr in (yaw, t, cov, g_world, g_level, chi2):
-        arr[bad] = np.nan
+    if bad.any():
+        for arr in (yaw, t, cov, g_world, g_level, chi2):
+            arr[bad] = np.nan
     pose = ParentPoseBatch(yaw, t, cov, timestamp)
     n_trials = yaw.shape[0]
     solution = CpsSolutionBatch(

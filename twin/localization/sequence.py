@@ -151,10 +151,6 @@ def add_creep(covariance: NDArray[np.float64], known: NDArray[np.bool_], creep: 
             covariance[..., i, i] += creep**2
 
 
-def _transpose(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.swapaxes(a, -1, -2)
-
-
 class CpsBatch:
     """Joint estimates of a parent and its children along a CPS run, in T trials.
 
@@ -364,7 +360,7 @@ class CpsBatch:
         n_trials, n = self._state.shape
         a = np.tile(np.eye(n), (n_trials, 1, 1))
         b = np.zeros((n_trials, n, 3 * len(names)))
-        lever = points @ _transpose(rot_dot)  # d(R p + t) / d yaw of every point
+        lever = points @ rot_dot.mT  # d(R p + t) / d yaw of every point
         x_new = self._state.copy()
         for j, name in enumerate(names):
             k = self._index[name]
@@ -451,9 +447,9 @@ class CpsBatch:
 
     def _commit(self, x_new: NDArray, a: NDArray, b: NDArray, noise: NDArray) -> None:
         # Children not placed yet have NaN state and zero covariance rows; A keeps them so.
-        p_new = a @ self._covariance @ _transpose(a) + b @ noise @ _transpose(b)
+        p_new = a @ self._covariance @ a.mT + b @ noise @ b.mT
         self._state = x_new
-        self._covariance = 0.5 * (p_new + _transpose(p_new))
+        self._covariance = 0.5 * (p_new + p_new.mT)
 
     def _advance(
         self, obs: Sequence[ChildObservation | ChildObservationBatch], timestamp: float | None

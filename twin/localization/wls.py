@@ -67,10 +67,6 @@ def procrustes_yaw_batch(
     return np.arctan2(cross, dot)
 
 
-def _transpose(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.swapaxes(a, -1, -2)
-
-
 def _residual_system(
     yaw: NDArray[np.float64],
     t: NDArray[np.float64],
@@ -88,10 +84,10 @@ def _residual_system(
     big_r = np.zeros((n_trials, 3 * n, 3 * n))
     for i in range(n):
         big_r[:, 3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = rot
-    s = cov_world + big_r @ cov_level @ _transpose(big_r)
-    r = (world - level @ _transpose(rot) - t[:, None, :]).reshape(n_trials, 3 * n)
+    s = cov_world + big_r @ cov_level @ big_r.mT
+    r = (world - level @ rot.mT - t[:, None, :]).reshape(n_trials, 3 * n)
     jac = np.empty((n_trials, 3 * n, 4))
-    jac[:, :, 0] = -(level @ _transpose(rot_z_derivative(yaw))).reshape(n_trials, 3 * n)
+    jac[:, :, 0] = -(level @ rot_z_derivative(yaw).mT).reshape(n_trials, 3 * n)
     jac[:, :, 1:] = np.tile(-np.eye(3), (n, 1))
     if check:
         _check_positive_definite(s)
@@ -122,46 +118,50 @@ def _solve(
     rate: float | None,
 ) -> tuple[CpsSolutionBatch, NDArray[np.float64]]:
     """Gauss-Newton of checked (T, N, 3) points and (T, 3N, 3N) covariances; returns the
-    solutions and each trial's last step norm (rad and m)."""
+    solutions and the last step norm (rad and m) of the trials that did not converge."""
     n_trials, n = w.shape[:2]
     baseline, bad = poor_geometry(w, m, min_baseline)
     w, m, cw, cm = substitute_trials(bad, w, m, cw, cm)
 
     yaw = procrustes_yaw_batch(w, m)
-    t = np.mean(w - m @ _transpose(rot_z(yaw)), axis=-2)
-    iterations = np.zeros(n_trials, dtype=np.int64)
+    t = np.mean(w - m @ rot_z(yaw).mT, axis=-2)
+    iterations = np.full(n_trials, max_iterations, dtype=np.int64)
     converged = np.zeros(n_trials, dtype=bool)
-    step_norm = np.full(n_trials, np.inf)
+    step_norm = np.zeros(n_trials)
     active = np.arange(n_trials)
     for iteration in range(1, max_iterations + 1):
-        # Every trial still iterating: slices, not copies.
+        # Slices, not copies, while every trial iterates.
         a = slice(None) if active.size == n_trials else active
         r, jac, _, wj, _ = _residual_system(
             yaw[a], t[a], w[a], m[a], cw[a], cm[a], check=iteration == 1
         )
-        step = -np.linalg.solve(_transpose(jac) @ wj, _transpose(wj) @ r[..., None])[..., 0]
+        step = -np.linalg.solve(jac.mT @ wj, wj.mT @ r[..., None])[..., 0]
         yaw[a] = wrap_angle(yaw[a] + step[:, 0])
-        t[a] = t[a] + step[:, 1:]
-        iterations[a] = iteration
+        t[a] += step[:, 1:]
         # sqrt of a (1, 4) @ (4, 1) product: np.linalg.norm of one step, to the last bit.
-        step_norm[a] = np.sqrt(step[:, None, :] @ step[:, :, None])[:, 0, 0]
-        done = step_norm[active] < tolerance
-        converged[active[done]] = True
-        active = active[~done]
-        if active.size == 0:
-            break
+        norm = np.sqrt(step[:, None, :] @ step[:, :, None])[:, 0, 0]
+        done = norm < tolerance
+        if done.any():
+            finished = active[done]
+            iterations[finished] = iteration
+            converged[finished] = True
+            active, norm = active[~done], norm[~done]
+            if active.size == 0:
+                break
+    step_norm[active] = norm
 
     r, jac, s, wj, big_r = _residual_system(yaw, t, w, m, cw, cm)
     # (T, 4, 3N) gain (J^T S^-1 J)^-1 J^T S^-1
-    gain = np.linalg.solve(_transpose(jac) @ wj, _transpose(wj))
+    gain = np.linalg.solve(jac.mT @ wj, wj.mT)
     g_world = -gain
     g_level = gain @ big_r
-    cov = g_world @ cw @ _transpose(g_world) + g_level @ cm @ _transpose(g_level)
-    cov = 0.5 * (cov + _transpose(cov))
+    cov = g_world @ cw @ g_world.mT + g_level @ cm @ g_level.mT
+    cov = 0.5 * (cov + cov.mT)
     # A (1, 3N) @ (3N, 1) product per trial: the dot product of one residual.
     chi2 = (r[:, None, :] @ np.linalg.solve(s, r[..., None]))[:, 0, 0]
-    for arr in (yaw, t, cov, g_world, g_level, chi2):
-        arr[bad] = np.nan
+    if bad.any():
+        for arr in (yaw, t, cov, g_world, g_level, chi2):
+            arr[bad] = np.nan
     pose = ParentPoseBatch(yaw, t, cov, timestamp)
     dof = 3 * n - 4
     solution = CpsSolutionBatch(
