@@ -13,6 +13,8 @@ stands, the count and the bound (:class:`twin.campaign.travel.NoProgress`):
   reaching it aborts the campaign.
 - :attr:`CampaignBounds.stops`: a child's stops for one data set; reaching it ends the data
   set with the points it has (the campaign goes on).
+- :attr:`CampaignBounds.recoveries`: legs in a row that failed and were backed off from
+  (:mod:`twin.campaign.recovery`); reaching it aborts the campaign.
 - :attr:`CampaignBounds.drives`: drives of all the robots in the whole campaign; what the
   other bounds allow, counted drive by drive (:func:`drives_bound`), so that a loop inside
   a leg or a stop that went on would end too; reaching it aborts the campaign.
@@ -31,7 +33,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from twin.campaign.paper_strategy import SHORTEST_LEG
+from twin.campaign.paper_strategy import SHORTEST_LEG, halvings
 from twin.campaign.shooting import SEARCH_DEG
 from twin.campaign.travel import (
     LONG_DRIVE_M,
@@ -51,6 +53,7 @@ __all__ = [
     "campaign_bounds",
     "drives_bound",
     "legs_bound",
+    "recoveries_bound",
     "stops_bound",
     "travels_bound",
 ]
@@ -80,13 +83,15 @@ class CampaignBounds:
     Attributes:
         legs: CPS legs of one travel. travels: travels of the campaign (visits and
             returns). stops: a child's stops for one data set. drives: drives of all the
-            robots (each ``drive_to`` of a base) in the whole campaign.
+            robots (each ``drive_to`` of a base) in the whole campaign. recoveries: legs
+            in a row backed off from (:func:`recoveries_bound`).
     """
 
     legs: int
     travels: int
     stops: int
     drives: int
+    recoveries: int = 3
 
 
 def legs_bound(route_length: float, step: float, slack: float) -> int:
@@ -102,6 +107,19 @@ def legs_bound(route_length: float, step: float, slack: float) -> int:
             (> 0). slack: ``campaign.progress_slack`` (>= 1).
     """
     return math.ceil(slack * route_length / (SHORTEST_LEG_FRACTION * step)) + 1
+
+
+def recoveries_bound(slack: float) -> int:
+    """Legs in a row that may fail and be backed off from: ``ceil(slack * (halvings + 1) /
+    2)``, with ``halvings`` how often a step is halved down to the shortest leg
+    (:data:`twin.campaign.paper_strategy.SHORTEST_LEG`): each recovery plans the leg half
+    as long, so a leg the shortest cannot make is given up after ``halvings + 1`` tries at
+    the default slack of 2 (3).
+
+    Args:
+        slack: ``campaign.progress_slack`` (>= 1).
+    """
+    return math.ceil(slack * (halvings(1.0, SHORTEST_LEG) + 1) / 2)
 
 
 def travels_bound(visits: int, slack: float) -> int:
@@ -201,4 +219,4 @@ def campaign_bounds(scenario: Scenario) -> CampaignBounds:
     per_leg = leg_drives(len(scenario.robots.children), len(route.waypoints), pieces)
     data_sets = len(scenario.cameras) + travels
     drives = drives_bound(travels, legs, stops, data_sets, per_leg, stop_drives(pieces))
-    return CampaignBounds(legs, travels, stops, drives)
+    return CampaignBounds(legs, travels, stops, drives, recoveries_bound(slack))

@@ -8,7 +8,8 @@ parent, and a child's data at stops spread over each camera's view.
 - legs: along the route in equal steps of at most ``campaign.formation.step``; the
   children stand ahead of the parent's next station (:func:`twin.campaign.plan.formation.
   formation`), the one farther ahead moving first; where there is no room for them, a
-  leg half as long, down to 30 % of a step;
+  leg half as long, down to 30 % of a step; after a leg that failed and was backed off
+  from (:mod:`twin.campaign.recovery`), a leg to half way first;
 - data: the child nearer the camera's view takes it at the first stops of
   :func:`twin.campaign.plan.view_stops.view_stops`, in a nearest-neighbour tour, the
   later ones spare; at each stop it turns where its own assembly would hide a prism.
@@ -175,6 +176,21 @@ class PaperStrategy(Strategy):
             f"no place for the children ahead of s = {s_next:.1f} m",
             f"no formation for the leg to s = {s_next:.1f} m",
         )
+
+    def leg_failed(self, view: CampaignView, goal: Visit | Return, leg: Leg) -> None:
+        """The group backed off to where the failed leg started: the leg is planned again
+        to half way first (down to the shortest, :data:`SHORTEST_LEG` of a step), then on
+        to where it went."""
+        s_failed, self._reached_s = self._reached_s, None  # the group is still at _arc
+        if s_failed is None or goal is not self._goal:
+            return
+        ends = list(self._leg_ends or [])
+        if not ends or ends[0] != s_failed:
+            ends.insert(0, s_failed)
+        half = 0.5 * (self._arc + s_failed)
+        if abs(half - self._arc) > 0.5 * SHORTEST_LEG * self._step(view):
+            ends.insert(0, half)
+        self._leg_ends = ends
 
     def _around_corner(
         self,

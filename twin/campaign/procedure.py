@@ -16,7 +16,9 @@ Faults do not stop the run: lost locks are retried, points whose LEDs are not al
 are skipped, a station that cannot be reached or yields too few points is reported. Every
 failure is recorded (``/campaign/failure``) with its kind; the campaign's own recoveries
 (a child turning, the parent stepping aside, a prism aimed at again) are events
-(``/campaign/event``).
+(``/campaign/event``). A leg that fails all the same (a child the parent cannot measure,
+a parent that cannot fix its pose) is backed off from and planned again, shorter
+(:mod:`.recovery`, events ``child_backed_off`` and ``parent_backed_off``).
 Every loop ends within a bound computed from the scenario (:mod:`.bounds`): a travel whose
 legs, a campaign whose travels, or robots whose drives reach theirs end the campaign with
 the failure ``no_progress``, which names the stage, where the parent stands and the count.
@@ -41,6 +43,7 @@ from twin.campaign.collection import DataCollection
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import CampaignOutcome, Journal, Progress
 from twin.campaign.records import CalibrationRecord
+from twin.campaign.recovery import LegRecovered
 from twin.campaign.strategies import strategy_named
 from twin.campaign.strategy import (
     CampaignView,
@@ -169,6 +172,7 @@ class Campaign:
             self.settings.lock_retries,
             self.false_alarm_rate,
             self.bounds.drives,
+            self.bounds.recoveries,
         )
         sequence = (
             SwitchingSequence.binary(len(marker.leds_body))
@@ -316,12 +320,16 @@ class Campaign:
         """CPS legs to the goal's station; whether the parent reached it.
 
         Raises:
-            CampaignAborted: no leg could be planned, or CPS lost the children.
-            NoProgress: the strategy asked for more legs than :attr:`bounds` allows.
+            CampaignAborted: no leg could be planned, or CPS lost the children and could
+                not back off (:mod:`.recovery`).
+            NoProgress: the strategy asked for more legs than :attr:`bounds` allows, or
+                more legs in a row were backed off from.
         """
         legs = self.bounds.legs
+        failed: Leg | None = None
         for count in range(legs + 1):
-            leg: Leg | NoLeg | None = yield NextLeg(goal)
+            leg: Leg | NoLeg | None = yield NextLeg(goal, failed)
+            failed = None
             if leg is None:
                 return True
             if isinstance(leg, NoLeg):
@@ -333,7 +341,11 @@ class Campaign:
                 else:
                     where = f"to the station of {goal.camera}"
                 raise self.travel.no_progress(f"legs {where}", count, legs)
-            reached = self.travel.execute(leg)
+            try:
+                reached = self.travel.execute(leg)
+            except LegRecovered:
+                failed = leg  # backed off (recorded): the strategy plans it again, shorter
+                continue
             if not reached and leg.arrives:
                 return False
         raise AssertionError("unreachable: the last pass returns or raises")

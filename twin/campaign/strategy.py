@@ -9,7 +9,8 @@ The decisions:
   (:class:`Visit`), a place to return to (:class:`Return`), or the end;
 - :meth:`Strategy.next_leg`: the next CPS leg towards it (:class:`Leg`: where each child
   stops, in which order, and where the parent goes: the formation and the step length),
-  None once there, or :class:`NoLeg`;
+  None once there, or :class:`NoLeg`; :meth:`Strategy.leg_failed`: a leg failed and the
+  group backed off, the next one is to be shorter;
 - :meth:`Strategy.data_stops`: where a child stops for a camera's data (:class:`StopPlan`).
 
 A strategy sees what the campaign knows (:class:`CampaignView`: the map, the CPS estimate
@@ -285,6 +286,11 @@ class Strategy(abc.ABC):
         """The next CPS leg towards ``goal``'s station; None once the parent is there (it
         may stop short of it if a drive was blocked); :class:`NoLeg` if none can be made."""
 
+    def leg_failed(self, view: CampaignView, goal: Visit | Return, leg: Leg) -> None:  # noqa: B027
+        """``leg`` towards ``goal`` failed and the group backed off to a place measured
+        before (:mod:`twin.campaign.recovery`): the next :meth:`next_leg` should be
+        shorter. Nothing by default (the next leg is planned from where the group is)."""
+
     @abc.abstractmethod
     def data_stops(self, view: CampaignView, camera: str, dataset: str, points: int) -> StopPlan:
         """Where a child stops for ``camera``'s data (``dataset``: ``reference`` or
@@ -318,11 +324,17 @@ class NextVisit(Question):
 
 @dataclass(frozen=True)
 class NextLeg(Question):
-    """The next leg towards ``goal``: a :class:`Leg`, None (there) or :class:`NoLeg`."""
+    """The next leg towards ``goal``: a :class:`Leg`, None (there) or :class:`NoLeg`.
+
+    ``failed``: the leg before, which failed, the group backed off (the strategy is told
+    first, :meth:`Strategy.leg_failed`); None when it did not."""
 
     goal: Visit | Return
+    failed: Leg | None = None
 
     def ask(self, strategy: Strategy, view: CampaignView) -> Leg | NoLeg | None:
+        if self.failed is not None:
+            strategy.leg_failed(view, self.goal, self.failed)
         return strategy.next_leg(view, self.goal)
 
 

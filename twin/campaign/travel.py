@@ -7,7 +7,9 @@ and fixes its pose from the stationary children.
 
 Two moves are recoveries, not faults, and are recorded as events: a child whose prism the
 parent cannot measure turns on the spot and is measured again (:data:`TURNS_DEG`); a parent
-that cannot see both children steps aside and measures again (:data:`SIDESTEPS`).
+that cannot see both children steps aside and measures again
+(:data:`twin.campaign.parent_fix.SIDESTEPS`). A leg that fails all the same is recovered:
+the group backs off and the leg is planned again, shorter (:mod:`twin.campaign.recovery`).
 """
 
 from __future__ import annotations
@@ -19,21 +21,20 @@ from numpy.typing import NDArray
 
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import Journal, RobotJournal
+from twin.campaign.parent_fix import FIX_ATTEMPTS, SIDESTEPS, ParentFix
 from twin.campaign.plan.clearance import (
     CHILD_BODY,
     PARENT_BODY,
-    ROBOT_CLEARANCE,
     path_clear,
-    robot_fits,
 )
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.ways import ROBOT_MARGIN, robots_clear, way_to
-from twin.campaign.shooting import measure_child, moved_between, oriented_on, same_marker
+from twin.campaign.recovery import drive_again, recover_child, recover_parent
+from twin.campaign.shooting import measure_child, moved_between, same_marker
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
 from twin.hal.readings import DriveResult, DriveStatus
 from twin.hal.rig import Rig
-from twin.instruments.errors import InconsistentChildrenError, TiltOutOfRangeError
 from twin.instruments.marker import MarkerAssembly
 from twin.localization.observation import ChildObservation
 from twin.localization.planar import world2level
@@ -47,9 +48,6 @@ ROUTE_TOLERANCE = 0.5
 
 TURNS_DEG = (30.0, -60.0)
 """How a child turns, one after the other, when the parent cannot measure all its prisms."""
-
-SIDESTEPS = (0.4, -0.8)
-"""How the parent steps sideways, one after the other, m, when it cannot fix its pose."""
 
 LONG_DRIVE_M = 30.0
 """A child's straight drive longer than this, m, is tracked by the standing parent. A
@@ -74,10 +72,6 @@ parent that turns it 10 mrad moves a child 3 m away by 30 mm."""
 
 NO_PROGRESS = "no_progress"
 """The failure of a loop of the campaign that reached its bound (:mod:`twin.campaign.bounds`)."""
-
-FIX_ATTEMPTS = 2 + len(SIDESTEPS)
-"""Attempts at the parent's fix: twice where it stopped (starting from either child), then
-once after each side step."""
 
 
 class CampaignAborted(RuntimeError):
@@ -107,7 +101,10 @@ class NoProgress(CampaignAborted):
         )
 
 
-class Travel:
+__all__ = ["FIX_ATTEMPTS", "SIDESTEPS", "CampaignAborted", "NoProgress", "Travel"]
+
+
+class Travel(ParentFix):
     """Moves the robots and keeps the CPS state of the group.
 
     Args:
@@ -117,6 +114,9 @@ class Travel:
         false_alarm_rate: of the consistency tests (None: no test, a noise-free instrument).
         max_drives: the most drives of all the robots together
             (:attr:`twin.campaign.bounds.CampaignBounds.drives`; None: no bound).
+        max_recoveries: the most recoveries of legs in a row (:mod:`twin.campaign.
+            recovery`, :attr:`twin.campaign.bounds.CampaignBounds.recoveries`; None: no
+            bound).
     """
 
     def __init__(
@@ -129,10 +129,13 @@ class Travel:
         lock_retries: int,
         false_alarm_rate: float | None,
         max_drives: int | None = None,
+        max_recoveries: int | None = None,
     ) -> None:
         self.rig, self.cps, self.journal = rig, cps, journal
         self.max_drives = max_drives
         self.drives = 0  # every robot's, so far
+        self.max_recoveries = max_recoveries
+        self.recoveries = 0  # of legs in a row, since the last leg that ended with a fix
         self.space, self.marker = space, marker
         self.lock_retries = lock_retries
         self.false_alarm_rate = false_alarm_rate
@@ -150,20 +153,27 @@ class Travel:
             Whether the parent reached its stop.
 
         Raises:
-            CampaignAborted: a child cannot be measured, or the parent cannot fix its pose.
+            LegRecovered: a child could not be measured at its stop, or the parent could
+                not fix its pose after it drove, and the group backed off to a place
+                measured before (:mod:`twin.campaign.recovery`): plan the leg again.
+            CampaignAborted: it could not back off.
+            NoProgress: the recoveries in a row reached their bound.
         """
         order = [move.robot for move in leg.children]
+        before = self.cps.parent
         for move in leg.children:
             if not self.drive_along(self.rig.children[move.robot], move):
                 self.journal.failure(
                     "child_blocked", "the child stopped short of its stop", move.robot
                 )
-            if self.place_child_turning(move.robot) is None and self._drive_again(move) is None:
-                raise CampaignAborted(f"the parent cannot measure {move.robot}")
+            if self.place_child_turning(move.robot) is None and drive_again(self, move) is None:
+                recover_child(self, move)
         for child in order[:-1]:
             self.check_stayed(child, order[-1])
         reached = self.drive_along(self.rig.parent, leg.parent)
-        self.fix_parent()
+        if not self.fix_parent():
+            recover_parent(self, leg, before)
+        self.recoveries = 0
         if not reached:
             self.journal.failure(
                 "parent_blocked", "the parent stopped short of its goal", robot=self.rig.parent.name
@@ -403,11 +413,34 @@ class Travel:
         )
 
     def place_child(self, child: str) -> ChildObservation | None:
-        """Measure a child that moved (the parent stands) and place it in the CPS state."""
+        """Measure a child that moved (the parent stands) and place it in the CPS state;
+        None when it could not be measured, or its shots found another child's marker."""
         obs = self.measure(child)
-        if obs is not None:
-            self._place(child, obs)
+        if obs is None or self._another_marker(child, obs):
+            return None
+        self._place(child, obs)
         return obs
+
+    def _another_marker(self, child: str, obs: ChildObservation) -> bool:
+        """Whether the standing parent's shots at ``child`` found the marker of another
+        child, where the CPS state has it (recorded as ``wrong_child``).
+
+        The instrument locks the prism nearest its aim: a child whose prisms are hidden
+        (behind a wall, say), seen in nearly the same bearing as another, gives the
+        other's marker, which fits the assembly as well as its own. Placed there, the two
+        children would be one point, and the parent could not fix its pose from them.
+        """
+        parent = self.cps.parent
+        for other in self.placed:
+            if other == child:
+                continue
+            known = world2level(self.cps.child_position(other)[0], parent.yaw, parent.translation)
+            if same_marker(obs.point_level, known):
+                self.journal.failure(
+                    "wrong_child", f"{child}'s shots found {other}'s marker", robot=child
+                )
+                return True
+        return False
 
     def _place(self, child: str, obs: ChildObservation) -> None:
         """Place a child measured from the standing parent in the CPS state."""
@@ -432,29 +465,6 @@ class Travel:
             obs = self.place_child(child)
         return obs
 
-    def _drive_again(self, move: Move) -> ChildObservation | None:
-        """A child the parent cannot measure where it stopped, turned or not, may have
-        stopped off its goal (its odometry carries its heading's error) behind what the
-        plan kept clear: it drives back to where it stood at the parent's last fix (which
-        the parent saw from where it stands), is measured there and its odometry
-        corrected, and drives to its stop again. Its observation there, or None."""
-        child = move.robot
-        if child not in self.placed:
-            return None
-        base = self.rig.children[child]
-        stand = self.cps.child_position(child)[0][:2]
-        self.journal.event("child_drove_again", "back to its last stand and again", child)
-        heading = math.atan2(*(stand - self.child_pose(child)[:2])[::-1])
-        if not self._drive(base, stand, self._showing(stand, heading)).reached:
-            return None
-        seen = self.measure(child)
-        if seen is None:
-            return None
-        self._correct_child_pose(child, seen, self.cps.parent)
-        if not self.drive_along(base, move):
-            return None
-        return self.place_child_turning(child)
-
     def check_stayed(self, child: str, mover: str) -> None:
         """Measure a placed child again after ``mover`` drove (the parent stands), as a
         surveyor checks a backsight; place it anew if it moved.
@@ -469,6 +479,8 @@ class Travel:
         obs = self.measure(child)
         if obs is None or not moved_between(before, obs, self.false_alarm_rate):
             return
+        if self._another_marker(child, obs):
+            return
         shift = float(np.linalg.norm(obs.point_level - before.point_level))
         self.journal.failure(
             "child_moved",
@@ -477,94 +489,3 @@ class Travel:
             shift_m=shift,
         )
         self._place(child, obs)
-
-    # -- the parent's fix ------------------------------------------------------------------------
-    def fix_parent(self) -> None:
-        """The parent moved: measure the stationary children, solve its pose.
-
-        Raises:
-            CampaignAborted: no attempt gave a fix.
-        """
-        parent = self.rig.parent
-        z = float(self.cps.parent.translation[2])
-        for attempt in range(FIX_ATTEMPTS):
-            if attempt >= 2 and not self._step_aside(SIDESTEPS[attempt - 2]):
-                continue
-            odo = parent.odometry()
-            guess = ParentPose(odo.yaw, np.array([odo.x, odo.y, z]))
-            try:
-                self.rig.total_station.read_inclination()
-            except TiltOutOfRangeError as exc:  # it stands on a slope: perhaps not aside
-                self.journal.failure(exc.reason.value, str(exc), parent.name, attempt=attempt)
-                continue
-            # A retry starts from the other child: the first one measured orients the aim
-            # at the next, and a wrong first one must not spoil every attempt.
-            order = self.children if attempt % 2 == 0 else self.children[::-1]
-            obs = self._observe_children(order, guess, attempt)
-            if len(obs) < 2:
-                self.journal.failure(
-                    "parent_fix_failed", f"measured {len(obs)} children", robot=parent.name
-                )
-                continue
-            try:
-                with timed(self.rig.timings, "solving"):
-                    self.cps.parent_moved(obs)
-            except InconsistentChildrenError as exc:
-                self.journal.failure(
-                    "inconsistent_children", str(exc), robot=parent.name, attempt=attempt
-                )
-                continue
-            except ValueError as exc:  # geometry that cannot fix the yaw (children in line)
-                self.journal.failure(
-                    "parent_fix_failed", str(exc), robot=parent.name, attempt=attempt
-                )
-                continue
-            pose = self.cps.parent
-            parent.set_pose(float(pose.translation[0]), float(pose.translation[1]), pose.yaw)
-            self.journal.parent_fix(pose, obs)
-            if self.control_points is not None:
-                self.control_points.sight(pose, parent.name)
-            return
-        raise CampaignAborted(
-            "the parent could not fix its pose from the children (if they may move while "
-            "the parent drives, say how far in campaign.child_creep_m)"
-        )
-
-    def _step_aside(self, step: float) -> bool:
-        """A child's prism stays hidden from where the parent stands: CPS solves the
-        parent's pose wherever it stands, so it steps aside (if there is room) to measure
-        again. Whether it moved."""
-        parent = self.rig.parent
-        odo = parent.odometry()
-        side = np.array([-math.sin(odo.yaw), math.cos(odo.yaw)]) * step
-        target = odo.pose[:2] + side
-        if not robot_fits(self.space, target[None], ROBOT_CLEARANCE)[0]:
-            return False
-        self.journal.event(
-            "parent_stepped_aside", f"{step:+.1f} m to see the children", parent.name
-        )
-        self._go(parent, target, odo.yaw)
-        return True
-
-    def _observe_children(
-        self, order: list[str], guess: ParentPose, attempt: int
-    ) -> list[ChildObservation]:
-        """Each child measured from the parent's guessed pose, the guess oriented on the
-        first found; a child whose shots found another's marker is left out."""
-        obs: list[ChildObservation] = []
-        for child in order:
-            o = self.measure(child, guess)
-            if o is None:
-                continue
-            seen = next((p for p in obs if same_marker(p.point_level, o.point_level)), None)
-            if seen is not None:
-                self.journal.failure(
-                    "wrong_child",
-                    f"{child}'s shots found {seen.child}'s marker again",
-                    robot=child,
-                    attempt=attempt,
-                )
-                continue
-            obs.append(o)
-            guess = oriented_on(guess, self.cps.child_position(child)[0], o.point_level)
-        return obs

@@ -1,0 +1,175 @@
+"""Recovery of a CPS leg that failed: back off to a place measured before, and plan the leg
+again, shorter.
+
+A leg fails when the standing parent cannot measure a child at its stop (turned, and
+driven there again: :meth:`twin.campaign.travel.Travel.place_child_turning`), or when the
+parent cannot fix its pose from the children after it drove (stepped aside too:
+:mod:`twin.campaign.parent_fix`). Noise on the drives can leave a robot where a prism is
+hidden, out of the instrument's range, or in line with the other child; a shorter leg
+keeps the group where the plan saw it.
+
+- A child the parent cannot measure at its stop first drives back to its last stand, is
+  measured there, and drives to its stop again (:func:`drive_again`, event
+  ``child_drove_again``). That failing, the leg is recovered:
+- the child drives back to its last stand (where the parent
+  measured it from this station), or failing that to a place between its stand and its
+  stop, and is placed there (event ``child_backed_off``).
+- A parent that cannot fix its pose drives back along its move to where it last fixed it
+  (the children, measured from there, show to it) and fixes it there (event
+  ``parent_backed_off``).
+
+Either raises :class:`LegRecovered`: the campaign asks its strategy for the leg again
+(:class:`twin.campaign.strategy.NextLeg` with ``failed``), which plans it shorter. The
+recoveries in a row are bounded (:attr:`twin.campaign.bounds.CampaignBounds.recoveries`):
+reaching the bound ends the campaign with ``no_progress``. Where no back-off works the
+campaign is aborted, naming the place.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, NoReturn
+
+import numpy as np
+from numpy.typing import NDArray
+
+from twin.campaign.strategy import Leg, Move
+from twin.localization.observation import ChildObservation
+from twin.localization.pose import ParentPose
+
+if TYPE_CHECKING:
+    from twin.campaign.travel import Travel
+
+BACK_OFF_FRACTIONS = (0.0, 0.25, 0.5)
+"""Where a child backs off to, as fractions of the way from its last stand to its stop:
+the stand first (the parent measured it there), then places between (a stand the child's
+estimate puts against a wall cannot be driven to)."""
+
+
+class LegRecovered(Exception):
+    """A leg failed and the group stands where the parent can measure it again: the
+    campaign plans the leg again, shorter.
+
+    Attributes:
+        kind: the recovery's event (``child_backed_off``, ``parent_backed_off``).
+    """
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+def _at(xy: NDArray[np.float64]) -> str:
+    return f"({xy[0]:.2f}, {xy[1]:.2f}) m"
+
+
+def _count(travel: Travel) -> None:
+    """One more recovery in a row.
+
+    Raises:
+        NoProgress: the recoveries in a row reached their bound.
+    """
+    bound = travel.max_recoveries
+    if bound is not None and travel.recoveries >= bound:
+        raise travel.no_progress("recoveries of a leg in a row", travel.recoveries, bound)
+    travel.recoveries += 1
+
+
+def drive_again(travel: Travel, move: Move) -> ChildObservation | None:
+    """A child the parent cannot measure where it stopped, turned or not, may have
+    stopped off its goal (its odometry carries its heading's error) behind what the
+    plan kept clear: it drives back to where it stood at the parent's last fix (which
+    the parent saw from where it stands), is measured there and its odometry
+    corrected, and drives to its stop again. Its observation there, or None."""
+    child = move.robot
+    if child not in travel.placed:
+        return None
+    base = travel.rig.children[child]
+    stand = travel.cps.child_position(child)[0][:2]
+    travel.journal.event("child_drove_again", "back to its last stand and again", child)
+    heading = math.atan2(*(stand - travel.child_pose(child)[:2])[::-1])
+    if not travel._drive(base, stand, travel._showing(stand, heading)).reached:
+        return None
+    seen = travel.measure(child)
+    if seen is None:
+        return None
+    travel._correct_child_pose(child, seen, travel.cps.parent)
+    if not travel.drive_along(base, move):
+        return None
+    return travel.place_child_turning(child)
+
+
+def recover_child(travel: Travel, move: Move) -> NoReturn:
+    """The standing parent cannot measure ``move``'s child at its stop: it backs off
+    (see the module) and is placed there.
+
+    Raises:
+        LegRecovered: the child was placed where it backed off to.
+        CampaignAborted: it was measured nowhere (the message names its stop).
+        NoProgress: the recoveries in a row reached their bound.
+    """
+    from twin.campaign.travel import CampaignAborted
+
+    child = move.robot
+    stop = np.asarray(move.stop.xy, dtype=float)
+    if child not in travel.placed:
+        raise CampaignAborted(
+            f"the parent cannot measure {child} at its stop {_at(stop)}, and it has no "
+            "stand measured before to back off to"
+        )
+    _count(travel)
+    base = travel.rig.children[child]
+    stand = travel.cps.child_position(child)[0][:2]
+    for fraction in BACK_OFF_FRACTIONS:
+        place = stand + fraction * (stop - stand)
+        heading = math.atan2(*(place - travel.child_pose(child)[:2])[::-1])
+        if not travel._drive(base, place, travel._showing(place, heading)).reached:
+            continue
+        if travel.place_child_turning(child) is not None:
+            message = (
+                f"the parent cannot measure it at its stop {_at(stop)}: back at {_at(place)}, "
+                "the leg planned again shorter"
+            )
+            travel.journal.event(
+                "child_backed_off", message, child, x=float(place[0]), y=float(place[1])
+            )
+            raise LegRecovered("child_backed_off", message)
+    raise CampaignAborted(
+        f"the parent cannot measure {child} at its stop {_at(stop)}, nor where it backed off "
+        f"to (its last stand {_at(stand)} and the way from there)"
+    )
+
+
+def recover_parent(travel: Travel, leg: Leg, before: ParentPose) -> NoReturn:
+    """The parent cannot fix its pose after ``leg``: it drives back along its move to
+    ``before`` (its pose at its last fix) and fixes it there.
+
+    Raises:
+        LegRecovered: the parent fixed its pose where it backed off to.
+        CampaignAborted: it could not fix it there either (the message names both places).
+        NoProgress: the recoveries in a row reached their bound.
+    """
+    from twin.campaign.travel import CampaignAborted
+
+    stop = np.asarray(leg.parent.stop.xy, dtype=float)
+    back = np.asarray(before.translation[:2], dtype=float)
+    _count(travel)
+    parent = travel.rig.parent
+    for corner in reversed(leg.parent.corners):
+        if not travel._go(parent, np.asarray(corner, dtype=float)).reached:
+            break
+    travel._go(parent, back, before.yaw)
+    if travel.fix_parent():
+        message = (
+            f"no fix at {_at(stop)}: back at its last fix {_at(back)}, the leg planned again "
+            "shorter"
+        )
+        travel.journal.event(
+            "parent_backed_off", message, parent.name, x=float(back[0]), y=float(back[1])
+        )
+        raise LegRecovered("parent_backed_off", message)
+    raise CampaignAborted(
+        f"the parent could not fix its pose from the children at {_at(stop)}, nor back at its "
+        f"last fix {_at(back)} (if they may move while the parent drives, say how far in "
+        "campaign.child_creep_m)"
+    )
