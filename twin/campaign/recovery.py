@@ -11,9 +11,9 @@ keeps the group where the plan saw it.
 - A child the parent cannot measure at its stop first drives back to its last stand, is
   measured there, and drives to its stop again (:func:`drive_again`, event
   ``child_drove_again``). That failing, the leg is recovered:
-- the child drives back to its last stand (where the parent
-  measured it from this station), or failing that to a place between its stand and its
-  stop, and is placed there (event ``child_backed_off``).
+- the child drives back the way it came (the route abreast of its stop, the route's
+  corners, its last stand, where the parent measured it from this station), measured at
+  each place until the parent finds it, and is placed there (event ``child_backed_off``).
 - A parent that cannot fix its pose drives back along its move to where it last fixed it
   (the children, measured from there, show to it) and fixes it there (event
   ``parent_backed_off``).
@@ -40,10 +40,8 @@ from twin.localization.pose import ParentPose
 if TYPE_CHECKING:
     from twin.campaign.travel import Travel
 
-BACK_OFF_FRACTIONS = (0.0, 0.25, 0.5)
-"""Where a child backs off to, as fractions of the way from its last stand to its stop:
-the stand first (the parent measured it there), then places between (a stand the child's
-estimate puts against a wall cannot be driven to)."""
+BACK_OFF_APART = 0.1
+"""Places of a child's way back closer than this, m, are one place."""
 
 
 class LegRecovered(Exception):
@@ -99,9 +97,22 @@ def drive_again(travel: Travel, move: Move) -> ChildObservation | None:
     return travel.place_child_turning(child)
 
 
+def _way_back(move: Move, stand: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """The places a child passed on ``move`` from its ``stand``, from its stop back: the
+    route abreast of the stop, the route's corners, where it joined the route, the stand
+    (each once)."""
+    way: list[NDArray[np.float64]] = []
+    for point in [move.on_route, *reversed(move.corners), move.entry, stand]:
+        p = np.asarray(point, dtype=float)
+        if not way or np.linalg.norm(p - way[-1]) > BACK_OFF_APART:
+            way.append(p)
+    return way
+
+
 def recover_child(travel: Travel, move: Move) -> NoReturn:
-    """The standing parent cannot measure ``move``'s child at its stop: it backs off
-    (see the module) and is placed there.
+    """The standing parent cannot measure ``move``'s child at its stop: it backs off the
+    way it came (see the module), measured at each place it passes until the parent
+    finds it, and is placed there.
 
     Raises:
         LegRecovered: the child was placed where it backed off to.
@@ -120,23 +131,29 @@ def recover_child(travel: Travel, move: Move) -> NoReturn:
     _count(travel)
     base = travel.rig.children[child]
     stand = travel.cps.child_position(child)[0][:2]
-    for fraction in BACK_OFF_FRACTIONS:
-        place = stand + fraction * (stop - stand)
+    way = _way_back(move, stand)
+    # From the place of the way nearest where the child is (its stop; its stand, if it
+    # stopped there on its drive again).
+    here = travel.child_pose(child)[:2]
+    way = way[int(np.argmin([np.linalg.norm(p - here) for p in way])) :]
+    for k, place in enumerate(way):
         heading = math.atan2(*(place - travel.child_pose(child)[:2])[::-1])
         if not travel._drive(base, place, travel._showing(place, heading)).reached:
-            continue
-        if travel.place_child_turning(child) is not None:
+            break
+        last = k == len(way) - 1
+        placed = travel.place_child_turning(child) if last else travel.place_child(child)
+        if placed is not None:
             message = (
-                f"the parent cannot measure it at its stop {_at(stop)}: back at {_at(place)}, "
-                "the leg planned again shorter"
+                f"the parent cannot measure it at its stop {_at(stop)}: backed off to "
+                f"{_at(place)}, the leg planned again shorter"
             )
             travel.journal.event(
                 "child_backed_off", message, child, x=float(place[0]), y=float(place[1])
             )
             raise LegRecovered("child_backed_off", message)
     raise CampaignAborted(
-        f"the parent cannot measure {child} at its stop {_at(stop)}, nor where it backed off "
-        f"to (its last stand {_at(stand)} and the way from there)"
+        f"the parent cannot measure {child} at its stop {_at(stop)}, nor on its way back "
+        f"to its last stand {_at(stand)}"
     )
 
 
