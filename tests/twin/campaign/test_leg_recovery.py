@@ -9,6 +9,7 @@ finds no prism while a robot stands where the script hides it, as behind a wall.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
@@ -205,3 +206,55 @@ def test_a_parent_that_cannot_fix_its_pose_anywhere_aborts_naming_both_places():
     assert f"nor back at its last fix ({x:.2f}, {y:.2f}) m" in aborted.message
     assert not _events(log, "parent_backed_off")
     assert not log.failures("no_progress")
+
+
+# -- a child's shots that found the other's marker ------------------------------------------------
+def _travel_at_the_start():
+    """The smoke room's campaign before it starts (geometric, seed 1) and its travel."""
+    sc = _smoke(RETURN, return_to_start=True, reference_cameras=())
+    sim = build_sim_rig(build_world(sc), "geometric", seed=1)
+    log = _Log()
+    return sim, Campaign(sim.rig, sc, log).travel, log
+
+
+def _finds(travel, found: str):
+    """``travel.measure`` for a parent whose shots at child1 find ``found``'s marker."""
+    measure = travel.measure
+
+    def measured(child, parent=None):
+        obs = measure(found if child == "child1" else child, parent)
+        return None if obs is None else dataclasses.replace(obs, child=child)
+
+    return measured
+
+
+def test_a_child_whose_shots_found_the_other_childs_marker_is_not_placed_there():
+    sim, travel, log = _travel_at_the_start()
+    try:
+        assert travel.place_child("child2") is not None
+        own = travel.measure
+        travel.measure = _finds(travel, "child2")
+        assert travel.place_child("child1") is None
+        assert "child1" not in travel.placed
+        (wrong,) = log.failures("wrong_child")
+        assert (wrong.robot, wrong.message) == ("child1", "child1's shots found child2's marker")
+        travel.measure = own  # its own marker: placed
+        assert travel.place_child("child1") is not None
+        assert travel.placed["child1"].child == "child1"
+    finally:
+        sim.close()
+
+
+def test_a_check_shot_that_found_the_other_childs_marker_does_not_move_a_child():
+    sim, travel, log = _travel_at_the_start()
+    try:
+        first, second = travel.place_child("child1"), travel.place_child("child2")
+        assert first is not None
+        assert second is not None
+        travel.measure = _finds(travel, "child2")
+        travel.check_stayed("child1", "child2")
+        assert travel.placed["child1"] is first  # not placed again where child2 stands
+        assert len(log.failures("wrong_child")) == 1
+        assert not log.failures("child_moved")
+    finally:
+        sim.close()
