@@ -12,8 +12,9 @@ keeps the group where the plan saw it.
   measured there, and drives to its stop again (:func:`drive_again`, event
   ``child_drove_again``). That failing, the leg is recovered:
 - the child drives back the way it came (the route abreast of its stop, the route's
-  corners, its last stand, where the parent measured it from this station), measured at
-  each place until the parent finds it, and is placed there (event ``child_backed_off``).
+  corners, its last stand, where the parent measured it from this station, then a place
+  beside the stand), measured wherever each drive ended until the parent finds it, and
+  is placed there (event ``child_backed_off``).
 - A parent that cannot fix its pose drives back along its move to where it last fixed it
   (the children, measured from there, show to it) and fixes it there (event
   ``parent_backed_off``).
@@ -111,7 +112,7 @@ def _way_back(move: Move, stand: NDArray[np.float64]) -> list[NDArray[np.float64
 
 def recover_child(travel: Travel, move: Move) -> NoReturn:
     """The standing parent cannot measure ``move``'s child at its stop: it backs off the
-    way it came (see the module), measured at each place it passes until the parent
+    way it came (see the module), measured wherever each drive ends until the parent
     finds it, and is placed there.
 
     Raises:
@@ -136,11 +137,14 @@ def recover_child(travel: Travel, move: Move) -> NoReturn:
     # stopped there on its drive again).
     here = travel.child_pose(child)[:2]
     way = way[int(np.argmin([np.linalg.norm(p - here) for p in way])) :]
+    # A stand the child's estimate puts against a wall (a doorway's side) is refused: a
+    # place a quarter of the way from it to where the child came from, after it.
+    way.append(stand + 0.25 * ((way[-2] if len(way) > 1 else stop) - stand))
     for k, place in enumerate(way):
         heading = math.atan2(*(place - travel.child_pose(child)[:2])[::-1])
-        if not travel._drive(base, place, travel._showing(place, heading)).reached:
-            break
-        last = k == len(way) - 1
+        # Measured where it stopped, got there or not (short of a refused goal).
+        travel._drive(base, place, travel._showing(place, heading))
+        last = k >= len(way) - 2
         placed = travel.place_child_turning(child) if last else travel.place_child(child)
         if placed is not None:
             message = (
