@@ -13,8 +13,9 @@ keeps the group where the plan saw it.
   ``child_drove_again``). That failing, the leg is recovered:
 - the child drives back the way it came (the route abreast of its stop, the route's
   corners, its last stand, where the parent measured it from this station, then a place
-  beside the stand), measured wherever each drive ended until the parent finds it, and
-  is placed there (event ``child_backed_off``).
+  beside the stand, then places on the straight line from the stand to the stop),
+  measured wherever each drive ended until the parent finds it, and is placed there
+  (event ``child_backed_off``).
 - A parent that cannot fix its pose drives back along its move to where it last fixed it
   (the children, measured from there, show to it) and fixes it there (event
   ``parent_backed_off``).
@@ -43,6 +44,9 @@ if TYPE_CHECKING:
 
 BACK_OFF_APART = 0.1
 """Places of a child's way back closer than this, m, are one place."""
+
+BACK_OFF_FRACTIONS = (0.25, 0.5)
+"""Places tried last, as fractions of the straight line from a child's stand to its stop."""
 
 
 class LegRecovered(Exception):
@@ -140,11 +144,13 @@ def recover_child(travel: Travel, move: Move) -> NoReturn:
     # A stand the child's estimate puts against a wall (a doorway's side) is refused: a
     # place a quarter of the way from it to where the child came from, after it.
     way.append(stand + 0.25 * ((way[-2] if len(way) > 1 else stop) - stand))
+    # Then places on the straight line from the stand to the stop (a turn's inside).
+    way += [stand + f * (stop - stand) for f in BACK_OFF_FRACTIONS]
     for k, place in enumerate(way):
         heading = math.atan2(*(place - travel.child_pose(child)[:2])[::-1])
         # Measured where it stopped, got there or not (short of a refused goal).
         travel._drive(base, place, travel._showing(place, heading))
-        last = k >= len(way) - 2
+        last = k >= len(way) - 2 - len(BACK_OFF_FRACTIONS)
         placed = travel.place_child_turning(child) if last else travel.place_child(child)
         if placed is not None:
             message = (
