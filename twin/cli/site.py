@@ -275,6 +275,8 @@ def run(args: argparse.Namespace) -> int:
         if "speckle =" in note:
             console.print(f"map: {escape(note)}")
     console.print(f"scenario: {written.path}; figure: {written.figure}")
+    for cam, how in plan.moved.items():
+        console.print(f"[yellow]warning:[/yellow] camera {cam!r} {escape(how)}")
     left_out = (
         (
             plan.unreachable,

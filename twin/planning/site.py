@@ -24,27 +24,22 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
-from shapely.geometry import Point
 from shapely.geometry.base import BaseGeometry
 
 from calib.camera import TsaiCamera
-from calib.io.text import read_text, yaml_load
 from twin.campaign.plan.accurate_stops import partial_view_stops
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
 from twin.planning.ceiling import check_ceiling, site_ceiling
 from twin.planning.floor_map import FloorMap, MapError
 from twin.planning.frames import MapPose
-from twin.planning.map_files import map_sha256
 from twin.planning.route import NoPathError, RouteGraph
+from twin.planning.site_cameras import CAMERA_KEYS, clear_cameras, read_cameras
 from twin.planning.site_route import (
     FORMATION_CLEARANCE,
     PASSAGE_CLEARANCE,
@@ -54,8 +49,8 @@ from twin.planning.site_route import (
     route_through,
     run_out,
 )
+from twin.planning.site_scenario import map_reference, scenario_dict
 from twin.planning.site_start import (
-    START_PRISM_SIGHT,
     automatic_start,
     camera_in_world,
     children_of,
@@ -66,12 +61,21 @@ from twin.planning.site_start import (
 )
 from twin.planning.stations import NoStationError, Station, choose_station
 from twin.planning.tour import order_visits
-from twin.scenario.errors import ScenarioError
-from twin.scenario.geometry import inside_obstacles
 from twin.scenario.loader import validate_model
 from twin.scenario.map_space import map_obstacle
 from twin.scenario.robots import INSTRUMENT_HEIGHT
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
+
+__all__ = [
+    "CAMERA_KEYS",
+    "FORMATION_CLEARANCE",
+    "PASSAGE_CLEARANCE",
+    "STATION_FLOOR",
+    "STATION_NEED",
+    "SitePlan",
+    "plan_site",
+    "read_cameras",
+]
 
 STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
@@ -83,21 +87,6 @@ wall across the camera's view): a quarter of the view still holds the station's 
 spread over half the view's width and depth, which a calibration needs; the plan then
 lowers the scenario's ``calibration.min_visible_fraction`` to what its stations see. A
 camera no station sees this much of is left out of the plan, named."""
-
-CAMERA_KEYS = (
-    "name",
-    "position",
-    "view_direction",
-    "f",
-    "cx",
-    "cy",
-    "kappa1",
-    "sx",
-    "image_size",
-    "opencv_distortion",
-    "sensor",
-    "led_centroid_px",
-)
 
 
 @dataclass(frozen=True)
@@ -118,6 +107,9 @@ class SitePlan:
             their floor view, each with the best found and where (W).
         partial: by camera name, the fraction its station sees where it is under
             :data:`STATION_NEED` (the scenario accepts it: see :data:`STATION_FLOOR`).
+        moved: the cameras that stood just inside a box of the blocked floor (on a wall's
+            face), moved off it, each with from where, to where and how far (map frame:
+            :func:`twin.planning.site_cameras.clear_cameras`).
     """
 
     scenario: dict[str, Any]
@@ -130,63 +122,7 @@ class SitePlan:
     unreachable: dict[str, str] = dataclasses.field(default_factory=dict)
     hidden: dict[str, str] = dataclasses.field(default_factory=dict)
     partial: dict[str, float] = dataclasses.field(default_factory=dict)
-
-
-def read_cameras(path: str | Path) -> list[dict[str, Any]]:
-    """The cameras file: a YAML list (or mapping with ``cameras``), or TOML
-    ``[[cameras]]``, each with a scenario camera's keys, in the map's frame (``position``'s
-    z is the height above the floor, m).
-
-    Raises:
-        MapError: the file cannot be read, or a camera is not a table of known keys, or
-            one of its values is not a scenario camera's (a NaN focal length, say); the
-            message names the camera (its index and name) and the key.
-    """
-    path = Path(path)
-    try:
-        text = read_text(path)
-        raw: Any = tomllib.loads(text) if path.suffix == ".toml" else yaml_load(text)
-    except (OSError, ValueError, yaml.YAMLError) as exc:
-        raise MapError(path, f"cannot read the cameras: {exc}") from None
-    if isinstance(raw, Mapping):
-        raw = raw.get("cameras")
-    if not isinstance(raw, list) or not raw:
-        raise MapError(path, "expected a list of cameras (YAML list, or TOML [[cameras]])")
-    out = []
-    for k, cam in enumerate(raw):
-        where = f"camera {k}" + (f" ({cam.get('name')!r})" if isinstance(cam, Mapping) else "")
-        if not isinstance(cam, Mapping):
-            raise MapError(path, f"{where}: expected a table of camera keys, got {cam!r}")
-        unknown = sorted(set(cam) - set(CAMERA_KEYS))
-        if unknown:
-            raise MapError(path, f"{where}: unknown keys {unknown}; expected {CAMERA_KEYS}")
-        for key in ("name", "position", "view_direction", "f", "cx", "cy", "image_size"):
-            if key not in cam:
-                raise MapError(path, f"{where}: the key {key!r} is missing")
-        position = cam["position"]
-        if not (
-            isinstance(position, list)
-            and len(position) == 3
-            and all(_finite_number(v) for v in position)
-        ):
-            raise MapError(
-                path,
-                f"{where}: position: expected 3 finite numbers (x, y in the map's frame and "
-                f"the height above the floor, m), got {position!r}",
-            )
-        try:
-            # The position is the map's (any size: the map's own coordinates); the rest is
-            # checked as a scenario camera's.
-            validate_model(CameraConfig, {**cam, "position": [0.0, 0.0, position[2]]}, path)
-        except ScenarioError as exc:
-            problems = "; ".join(str(issue) for issue in exc.issues)
-            raise MapError(path, f"{where}: {problems}") from None
-        out.append(dict(cam))
-    return out
-
-
-def _finite_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    moved: dict[str, str] = dataclasses.field(default_factory=dict)
 
 
 def plan_site(
@@ -271,12 +207,14 @@ def plan_site(
             )
     station_free = (floor.reachable(STATION_CLEARANCE).intersection(parent_free), parent_free)
     chosen = list(dict.fromkeys(wanted if wanted is not None else names))
+    # The stations are chosen in the map's frame when the start is to be chosen after them.
+    pose = MapPose() if start is None else MapPose(*(float(v) for v in start))
+    boxed = boxed_space(floor, pose, resolution)
+    cameras, moved = clear_cameras(floor, cameras, pose, boxed, floor_z)
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
         # best open tour over them, so that the route runs on rather than back and forth.
-        in_map, hidden = _stations(
-            floor, cameras, chosen, MapPose(), station_free, floor_z, resolution, avoid
-        )
+        in_map, hidden = _stations(cameras, chosen, pose, boxed, station_free, floor_z, avoid)
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
         graph = RouteGraph(passable)
         first, second = first_two(graph, in_map, wanted, floor.source)
@@ -289,18 +227,14 @@ def plan_site(
             )
             for k, st in in_map.items()
         }
+        boxed = boxed_space(floor, pose, resolution)
+        # The boxes laid in the chosen W: the cameras checked again.
+        cameras, again = clear_cameras(floor, cameras, pose, boxed, floor_z)
+        moved = {**again, **moved}
     else:
-        x, y, yaw = (float(v) for v in start)
-        pose = MapPose(x, y, yaw)
-        stations, hidden = _stations(
-            floor, cameras, chosen, pose, station_free, floor_z, resolution, avoid
-        )
+        stations, hidden = _stations(cameras, chosen, pose, boxed, station_free, floor_z, avoid)
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
     partial = {c: st.visible for c, st in stations.items() if st.visible < STATION_NEED}
-    boxed = boxed_space(floor, pose, resolution)
-    if start is None:  # the boxes laid in the chosen W: checked again
-        space = _space(boxed, floor_z)
-        _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     cams_w = {c["name"]: camera_in_world(c, pose, floor_z) for c in cameras}
     reach_w = pose.geometry2world(parent_free)
     graph = clear_of_boxes(route_graph(floor, pose, reach_w, stations), boxed)
@@ -320,11 +254,11 @@ def plan_site(
         route = run_out(route, reach_w)
     children = children_of(floor, pose)
     prism = loop_prism(floor, pose, route, children) if return_to_start else None
-    scenario = _scenario(
+    scenario = scenario_dict(
         name=name,
         seed=seed,
         space=boxed,
-        map_ref=_map_ref(floor, map_file or floor.source, pose, resolution),
+        map_ref=map_reference(floor, map_file or floor.source, pose, resolution),
         floor_z=floor_z,
         cameras=[cams_w[n] for n in names],
         children=children,
@@ -335,7 +269,7 @@ def plan_site(
             (cam, stations[cam].xy, heading)
             for cam, heading in zip(sequence, arrivals, strict=True)
         ],
-        min_visible=_min_visible(partial),
+        min_visible=_min_visible(partial) if partial else None,
         site={
             "map": map_file or floor.source,
             "map_pose": [pose.x, pose.y, math.degrees(pose.yaw)],
@@ -353,6 +287,7 @@ def plan_site(
         unreachable,
         hidden,
         partial,
+        moved,
     )
 
 
@@ -378,34 +313,29 @@ def _without(
 
 
 def _min_visible(partial: Mapping[str, float]) -> float:
-    """The scenario's ``calibration.min_visible_fraction``: :data:`STATION_NEED`, or where
-    a station sees less (``partial``: by camera, the fraction), a percent under the least
+    """The scenario's ``calibration.min_visible_fraction`` where a station sees less than
+    :data:`STATION_NEED` (``partial``: by camera, the fraction): a percent under the least
     of those, to the percent below (the scenario's check computes the fraction again, in
     the boxes laid in W)."""
-    if not partial:
-        return STATION_NEED
     return max(STATION_FLOOR - 0.01, math.floor(100 * min(partial.values())) / 100 - 0.01)
 
 
 def _stations(
-    floor: FloorMap,
     cameras: Sequence[Mapping[str, Any]],
     chosen: Sequence[str],
     pose: MapPose,
+    boxed: BoxedSpace,
     station_free: tuple[BaseGeometry, BaseGeometry],
     floor_z: float,
-    resolution: float,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
 ) -> tuple[dict[str, Station], dict[str, str]]:
     """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
     (``station_free[0]``) where one there sees :data:`STATION_NEED`, else on the floor the
     parent can reach (``station_free[1]``), else the one that sees the most of the two
     where it sees :data:`STATION_FLOOR`; away from the camera's places in ``avoid`` (map
-    frame). Returns the stations by camera name, and the cameras with none, each with
-    why (the best fraction found and where)."""
-    boxed = boxed_space(floor, pose, resolution)
+    frame; ``boxed``: the map's blocked floor in that W). Returns the stations by camera
+    name, and the cameras with none, each with why (the best fraction found and where)."""
     space = _space(boxed, floor_z)
-    _check_cameras_clear(floor, cameras, pose, boxed, space, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
     ts = Noise().total_station
@@ -481,136 +411,9 @@ def _avoided(
     return pose.map2world(np.asarray(places, dtype=float).reshape(-1, 2))
 
 
-def _check_cameras_clear(
-    floor: FloorMap,
-    cameras: Sequence[Mapping[str, Any]],
-    pose: MapPose,
-    boxed: BoxedSpace,
-    space: Space,
-    floor_z: float,
-) -> None:
-    """Refuse a camera that stands inside one of the boxes the map's blocked floor is laid
-    as, below its top (the scenario would refuse it), in the terms of the cameras file:
-    the camera's name, where it stands in the map's frame and what of the map it stands in.
-
-    Raises:
-        MapError: naming the camera and the obstacle, map frame.
-    """
-    obstacles = space.obstacles
-    if not obstacles:
-        return
-    tops = np.array([floor_z + ob.size[2] for ob in obstacles])
-    for cam in cameras:
-        p = np.asarray(cam["position"], dtype=float)
-        inside = inside_obstacles(obstacles, [pose.map2world(p[:2])])[:, 0]
-        hit = np.flatnonzero(inside & (floor_z + p[2] < tops))
-        if not hit.size:
-            continue
-        mapped = [ob for ob in floor.obstacles if ob.footprint.covers(Point(p[:2]))]
-        if mapped:
-            ob = mapped[0]
-            x0, y0, x1, y1 = ob.footprint.bounds
-            high = "up to the ceiling" if math.isinf(ob.height) else f"{ob.height:.2f} m high"
-            what = f"the map's obstacle {ob.name!r}"
-        else:  # a wall or floor the map does not show free, as its box laid on the grid
-            box = boxed.boxes[hit[0]]
-            half = 0.5 * np.asarray(box.size)
-            square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
-            corners = pose.world2map(np.asarray(box.center) + half * square)
-            (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
-            high = f"{box.height:.2f} m high"
-            what = "the map's blocked floor"
-        raise MapError(
-            floor.source,
-            f"camera {cam['name']!r} at ({p[0]:.2f}, {p[1]:.2f}), {p[2]:.2f} m above the "
-            f"floor, stands inside {what} (x {x0:.2f} to {x1:.2f}, y {y0:.2f} to {y1:.2f}, "
-            f"{high}; the map's frame, m); expected a camera over free floor or above what "
-            "stands there",
-        )
-
-
-def _space_dict(space: BoxedSpace, floor_z: float, map_ref: dict[str, Any]) -> dict[str, Any]:
-    """The scenario's space: the room, and the map its boxes are rebuilt from
-    (``[space.map]``, :class:`twin.scenario.schema.SpaceMap`)."""
-    return {
-        "size": list(space.size),
-        "origin": list(space.origin),
-        "floor_z": floor_z,
-        "map": map_ref,
-    }
-
-
 def _space(space: BoxedSpace, floor_z: float) -> Space:
     """The scenario's space with the map's boxes, for the planner's own checks."""
     room = validate_model(
         Space, {"size": list(space.size), "origin": list(space.origin), "floor_z": floor_z}
     )
     return room.with_map_boxes(tuple(map_obstacle(k, b) for k, b in enumerate(space.boxes)))
-
-
-def _map_ref(floor: FloorMap, map_file: str, pose: MapPose, resolution: float) -> dict[str, Any]:
-    """``[space.map]``: the map as the scenario names it, its content's hash, W's pose in it,
-    the grid and the reader's options."""
-    options = {
-        k: list(v) if isinstance(v, (list, tuple, set)) else v for k, v in floor.options.items()
-    }
-    return {
-        "file": map_file,
-        "sha256": map_sha256(floor.source),
-        "pose": [pose.x, pose.y, math.degrees(pose.yaw)],
-        "resolution": resolution,
-        "options": options,
-    }
-
-
-def _scenario(
-    *,
-    name: str,
-    seed: int,
-    space: BoxedSpace,
-    map_ref: dict[str, Any],
-    floor_z: float,
-    cameras: list[dict[str, Any]],
-    children: list[NDArray],
-    route: NDArray,
-    return_to_start: bool,
-    start_prism: NDArray | None,
-    visits: list[tuple[str, NDArray, float]],
-    site: dict[str, Any],
-    min_visible: float = STATION_NEED,
-) -> dict[str, Any]:
-    controls = (
-        []
-        if start_prism is None
-        else [
-            {
-                "name": "start_prism",
-                "position": [float(start_prism[0]), float(start_prism[1]), 0.0],
-                "sight_radius_m": START_PRISM_SIGHT,
-            }
-        ]
-    )
-    return {
-        "name": name,
-        "description": f"Planned from the map {site['map']}: {len(cameras)} cameras.",
-        "seed": seed,
-        "space": _space_dict(space, floor_z, map_ref),
-        "cameras": cameras,
-        "robots": {
-            "parent": {"name": "parent", "model": "pioneer3at", "start_xy": [0.0, 0.0]},
-            "children": [
-                {"name": f"child{k + 1}", "model": "pioneer3dx", "start_xy": c.tolist()}
-                for k, c in enumerate(children)
-            ],
-        },
-        "route": {"waypoints": route.tolist(), "return_to_start": return_to_start},
-        "control_points": controls,
-        "calibration": {
-            "visits": [
-                {"camera": cam, "station": xy.tolist(), "yaw_deg": heading}
-                for cam, xy, heading in visits
-            ],
-            **({} if min_visible == STATION_NEED else {"min_visible_fraction": min_visible}),
-        },
-        "site": site,
-    }
