@@ -6,7 +6,9 @@ camera's floor view; each is scored by :func:`twin.scenario.visibility.stations_
 (the fraction of the view's floor whose prisms the instrument sees, in range and clear of
 obstacles), the same test the scenario's validation applies to a station. The station is
 the candidate that sees the most, the nearest to a preferred distance from the view among
-equals (the paper's stations stand 4-8 m from their cameras' views).
+equals (the paper's stations stand 4-8 m from their cameras' views). Every other grid
+point is scored first, then the neighbours of the best (:func:`_scored`): a score costs a
+line of sight to each sample of the view, and it changes little over a grid step.
 """
 
 from __future__ import annotations
@@ -36,6 +38,13 @@ PREFERRED = 5.0
 MOST_TRIED = 40
 """How many of the best candidates :func:`choose_station` asks for data stops before it
 gives up on a camera (each asks the planner of stops once)."""
+
+REFINED = 10
+"""How many of the best candidates of the coarse grid (every other point) have their
+neighbours scored too (:func:`_scored`)."""
+
+COARSE_FROM = 4 * MOST_TRIED
+"""Fewer candidates than this are all scored at once."""
 
 SEES_EQUALLY = 0.02
 """Two candidates whose visible fractions differ by less than this see equally well."""
@@ -114,13 +123,17 @@ def choose_station(
     if avoid is not None and len(avoid) and len(candidates):
         near = np.linalg.norm(candidates[:, None, :] - np.asarray(avoid)[None, :, :], axis=2)
         candidates = candidates[np.all(near >= AVOID_RADIUS, axis=1)]
-    fractions = stations_visibility(
-        space, camera, candidates, instrument_z, prism_height, instrument_range
+    fractions = _scored(
+        candidates,
+        centre,
+        grid,
+        lambda xy: stations_visibility(
+            space, camera, xy, instrument_z, prism_height, instrument_range
+        ),
     )
-    keys = [
-        (round(frac / SEES_EQUALLY), -abs(float(np.linalg.norm(xy - centre)) - PREFERRED))
-        for xy, frac in zip(candidates, fractions.tolist(), strict=True)
-    ]
+    scored = np.isfinite(fractions)
+    candidates, fractions = candidates[scored], fractions[scored]
+    keys = _keys(candidates, fractions, centre)
     order = sorted(range(len(keys)), key=keys.__getitem__, reverse=True)
     first = order[0] if order else None
     best = (
@@ -155,6 +168,45 @@ def choose_station(
             best,
         )
     return best
+
+
+def _scored(
+    candidates: NDArray[np.float64],
+    centre: NDArray[np.float64],
+    grid: float,
+    visibility: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+) -> NDArray[np.float64]:
+    """(K,) the visible fraction of the (K, 2) ``candidates`` (on the ``grid`` about
+    ``centre``) worth scoring, NaN for the others: every other candidate of each row and
+    column is scored first (a quarter of them), then the unscored neighbours of the
+    :data:`REFINED` best (the fraction changes little over a grid step, and those scoring
+    a lot cost most: every one of their lines of sight is tested against the walls)."""
+    out = np.full(len(candidates), np.nan)
+    if len(candidates) <= COARSE_FROM:
+        out[:] = visibility(candidates)
+        return out
+    steps = np.rint((candidates - centre) / grid).astype(int)
+    coarse = np.flatnonzero(np.all(steps % 2 == 0, axis=1))
+    out[coarse] = visibility(candidates[coarse])
+    keys = _keys(candidates[coarse], out[coarse], centre)
+    best = coarse[sorted(range(len(coarse)), key=keys.__getitem__, reverse=True)[:REFINED]]
+    near = np.abs(steps[:, None, :] - steps[None, best, :]).max(axis=2) <= 1  # (K, B)
+    fine = np.flatnonzero(near.any(axis=1) & np.isnan(out))
+    if len(fine):
+        out[fine] = visibility(candidates[fine])
+    return out
+
+
+def _keys(
+    candidates: NDArray[np.float64], fractions: NDArray[np.float64], centre: NDArray[np.float64]
+) -> list[tuple[int, float]]:
+    """Each candidate's rank key, higher better: its fraction in steps of
+    :data:`SEES_EQUALLY`, then the nearness of its distance from ``centre`` to
+    :data:`PREFERRED`."""
+    return [
+        (round(frac / SEES_EQUALLY), -abs(float(np.linalg.norm(xy - centre)) - PREFERRED))
+        for xy, frac in zip(candidates, fractions.tolist(), strict=True)
+    ]
 
 
 def _candidates(reachable: BaseGeometry, centre: NDArray, grid: float) -> NDArray[np.float64]:
