@@ -34,6 +34,7 @@ from shapely.geometry.base import BaseGeometry
 
 from calib.camera import TsaiCamera
 from twin.campaign.plan.accurate_stops import partial_view_stops
+from twin.campaign.plan.ways import WAY_CLEARANCE
 from twin.planning.boxes import DEFAULT_RESOLUTION, BoxedSpace, boxed_space
 from twin.planning.ceiling import check_ceiling, site_ceiling
 from twin.planning.floor_map import FloorMap, MapError
@@ -59,7 +60,13 @@ from twin.planning.site_start import (
     loop_prism,
     start_region,
 )
-from twin.planning.stations import NoStationError, Station, choose_station
+from twin.planning.stations import (
+    REACHED,
+    NoStationError,
+    Station,
+    choose_station,
+    stops_reached,
+)
 from twin.planning.tour import order_visits
 from twin.scenario.loader import validate_model
 from twin.scenario.map_space import map_obstacle
@@ -206,6 +213,7 @@ def plan_site(
                 floor.source, f"the robots can reach no camera of the visits given: {listing}"
             )
     station_free = (floor.reachable(STATION_CLEARANCE).intersection(parent_free), parent_free)
+    child_free = floor.reachable(WAY_CLEARANCE)
     chosen = list(dict.fromkeys(wanted if wanted is not None else names))
     # The stations are chosen in the map's frame when the start is to be chosen after them.
     pose = MapPose() if start is None else MapPose(*(float(v) for v in start))
@@ -214,7 +222,9 @@ def plan_site(
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
         # best open tour over them, so that the route runs on rather than back and forth.
-        in_map, hidden = _stations(cameras, chosen, pose, boxed, station_free, floor_z, avoid)
+        in_map, hidden = _stations(
+            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid
+        )
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
         graph = RouteGraph(passable)
         first, second = first_two(graph, in_map, wanted, floor.source)
@@ -232,7 +242,9 @@ def plan_site(
         cameras, again = clear_cameras(floor, cameras, pose, boxed, floor_z)
         moved = {**again, **moved}
     else:
-        stations, hidden = _stations(cameras, chosen, pose, boxed, station_free, floor_z, avoid)
+        stations, hidden = _stations(
+            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid
+        )
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
     partial = {c: st.visible for c, st in stations.items() if st.visible < STATION_NEED}
     cams_w = {c["name"]: camera_in_world(c, pose, floor_z) for c in cameras}
@@ -326,6 +338,7 @@ def _stations(
     pose: MapPose,
     boxed: BoxedSpace,
     station_free: tuple[BaseGeometry, BaseGeometry],
+    child_free: BaseGeometry,
     floor_z: float,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
 ) -> tuple[dict[str, Station], dict[str, str]]:
@@ -333,13 +346,16 @@ def _stations(
     (``station_free[0]``) where one there sees :data:`STATION_NEED`, else on the floor the
     parent can reach (``station_free[1]``), else the one that sees the most of the two
     where it sees :data:`STATION_FLOOR`; away from the camera's places in ``avoid`` (map
-    frame; ``boxed``: the map's blocked floor in that W). Returns the stations by camera
+    frame; ``boxed``: the map's blocked floor in that W); one from which the children
+    reach the data stops past the standing parent (:func:`stops_reached` on
+    ``child_free``, map frame, where a child's centre may be). Returns the stations by camera
     name, and the cameras with none, each with why (the best fraction found and where)."""
     space = _space(boxed, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
     ts = Noise().total_station
     wheres = [pose.geometry2world(g) for g in station_free if not g.is_empty]
+    child_w = pose.geometry2world(child_free)
     out: dict[str, Station] = {}
     hidden: dict[str, str] = {}
     assembly = marker.assembly()
@@ -350,13 +366,15 @@ def _stations(
         best: Station | None = None
         why = "no place the robots reach near its floor view"
 
-        def gives_data(xy: NDArray[np.float64], camera: TsaiCamera = camera) -> bool:
-            # The campaign's own planner of data stops, from the station (no anchor yet).
-            return bool(
-                partial_view_stops(
-                    space, assembly, instrument_range, camera, xy, floor_z + INSTRUMENT_HEIGHT, None
-                )
+        def gives_data(xy: NDArray[np.float64], camera: TsaiCamera = camera) -> int:
+            # The campaign's own planner of data stops, from the station (no anchor yet),
+            # and whether the children reach them past the standing parent.
+            stops = partial_view_stops(
+                space, assembly, instrument_range, camera, xy, floor_z + INSTRUMENT_HEIGHT, None
             )
+            if not stops:
+                return 0
+            return REACHED if stops_reached(child_w, xy, [s.stop.xy for s in stops]) else 1
 
         # The roomy floor first, then all the parent reaches; where no station sees
         # STATION_NEED, the best of those that see STATION_FLOOR.

@@ -19,9 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 from numpy.typing import NDArray
+from shapely.geometry import Point
 from shapely.geometry.base import BaseGeometry
 
 from calib.camera import TsaiCamera
+from twin.campaign.plan.clearance import CHILD_BODY, PARENT_BODY
+from twin.campaign.plan.ways import ROBOT_MARGIN
 from twin.scenario.geometry import floor_view
 from twin.scenario.schema import Space
 from twin.scenario.visibility import stations_visibility
@@ -45,6 +48,10 @@ neighbours scored too (:func:`_scored`)."""
 
 COARSE_FROM = 4 * MOST_TRIED
 """Fewer candidates than this are all scored at once."""
+
+REACHED = 2
+"""What ``gives_data`` of :func:`choose_station` says of a station whose data stops the
+children reach."""
 
 SEES_EQUALLY = 0.02
 """Two candidates whose visible fractions differ by less than this see equally well."""
@@ -93,7 +100,7 @@ def choose_station(
     need: float,
     grid: float = GRID,
     avoid: NDArray[np.float64] | None = None,
-    gives_data: Callable[[NDArray[np.float64]], bool] | None = None,
+    gives_data: Callable[[NDArray[np.float64]], int] | None = None,
 ) -> Station:
     """The station of one camera (see the module).
 
@@ -109,8 +116,11 @@ def choose_station(
         avoid: (K, 2) places in W no station may stand within :data:`AVOID_RADIUS` of
             (where an earlier plan's station or travel failed); default none.
         gives_data: whether a child finds its data stops in the camera's view with the
-            parent at a (2,) station in W (the campaign's own planner of stops); a
-            candidate it refuses is passed over for the next best (default: every one).
+            parent at a (2,) station in W (the campaign's own planner of stops): 0 or
+            False where none, :data:`REACHED` where the children reach them past the
+            standing parent (:func:`stops_reached`), 1 or True where they may not. The
+            first candidate of :data:`REACHED` is taken, else the first that gives data;
+            one that gives none is passed over (default: every one gives data).
 
     Raises:
         NoStationError: no candidate reaches ``need`` (and gives data).
@@ -143,9 +153,15 @@ def choose_station(
     )
     if best is not None and best.visible >= need and gives_data is not None:
         tried = [k for k in order[:MOST_TRIED] if fractions[k] >= need]
+        first = None
         for k in tried:
-            if gives_data(candidates[k]):
+            grade = int(gives_data(candidates[k]))
+            if grade >= REACHED:
                 return Station(camera_name, candidates[k], float(fractions[k]), centre)
+            if grade and first is None:
+                first = k
+        if first is not None:  # every one stands between the children and the stops
+            return Station(camera_name, candidates[first], float(fractions[first]), centre)
         raise NoStationError(
             f"no station that sees {100 * need:.0f} % of camera {camera_name!r}'s floor view "
             "leaves a child a place in it that shows an LED to the camera and its prisms to "
@@ -207,6 +223,49 @@ def _keys(
         (round(frac / SEES_EQUALLY), -abs(float(np.linalg.norm(xy - centre)) - PREFERRED))
         for xy, frac in zip(candidates, fractions.tolist(), strict=True)
     ]
+
+
+ARRIVAL = 2.5
+"""How far from the parent the children stand when it arrives at a station, m (the
+formation's reach)."""
+
+NEAR_STATION = 12.0
+"""How far from a station :func:`stops_reached` follows the children's floor, m (the
+farthest a station stands from its camera's view)."""
+
+ARRIVAL_SHARE = 0.75
+"""Share of the circle :data:`ARRIVAL` round a station the pieces of floor that hold its
+data stops must hold (:func:`stops_reached`)."""
+
+CHILD_KEEP = PARENT_BODY + CHILD_BODY + ROBOT_MARGIN
+"""How far a child's centre keeps from the standing parent's, m (as its drives do)."""
+
+
+def stops_reached(
+    child_free: BaseGeometry, station_xy: NDArray[np.float64], stops_xy: NDArray[np.float64]
+) -> bool:
+    """Whether the children, arriving with the parent, reach the data stops (N, 2)
+    ``stops_xy`` (W, m) while it stands at ``station_xy``.
+
+    ``child_free`` (W) is where a child's centre may be. Near the station and less
+    :data:`CHILD_KEEP` round the parent, it falls into pieces where the parent stands in
+    a passage (a corridor, a door's mouth); the children may arrive on any piece the
+    circle :data:`ARRIVAL` round the parent crosses. The pieces that hold the stops must
+    hold :data:`ARRIVAL_SHARE` of that circle: the parent must not stand between the
+    floor the children come from and the view. True where no stop lies near it."""
+    station = Point(np.asarray(station_xy, dtype=float).reshape(2))
+    near = child_free.intersection(station.buffer(NEAR_STATION))
+    near = near.difference(station.buffer(CHILD_KEEP))
+    pieces = [g for g in getattr(near, "geoms", [near]) if g.area > 0]
+    stops = np.asarray(stops_xy, dtype=float).reshape(-1, 2)
+    if len(pieces) < 2 or not len(stops):
+        return True
+    ring = station.buffer(ARRIVAL).exterior
+    arrive = np.array([g.intersection(ring).length for g in pieces])
+    held = np.array([shapely.contains_xy(g, stops[:, 0], stops[:, 1]).any() for g in pieces])
+    if not held.any() or arrive.sum() <= 0.0:
+        return True
+    return bool(arrive[held].sum() >= ARRIVAL_SHARE * arrive.sum())
 
 
 def _candidates(reachable: BaseGeometry, centre: NDArray, grid: float) -> NDArray[np.float64]:

@@ -1,5 +1,6 @@
-"""Station scoring from coarse to fine: a quarter of the candidates scored first, then the
-neighbours of the best; the best of a smooth score is still found."""
+"""Station scoring from coarse to fine (a quarter of the candidates scored first, then the
+neighbours of the best; the best of a smooth score is still found), and stations that
+leave the children a way to the data stops."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 import shapely
 
-from twin.planning.stations import COARSE_FROM, GRID, _candidates, _keys, _scored
+from twin.planning.stations import COARSE_FROM, GRID, _candidates, _keys, _scored, stops_reached
 
 
 @pytest.mark.parametrize("peak", [(3.2, -1.7), (-4.6, 5.1), (0.0, 9.5)])
@@ -38,3 +39,33 @@ def test_few_candidates_are_all_scored():
     candidates = np.column_stack([np.arange(COARSE_FROM - 1) * GRID, np.zeros(COARSE_FROM - 1)])
     fractions = _scored(candidates, centre, GRID, lambda xy: np.full(len(xy), 0.5))
     assert np.all(fractions == 0.5)
+
+
+ROOM = shapely.box(0.0, 0.0, 10.0, 6.0).union(shapely.box(4.4, 5.9, 5.6, 12.0)).buffer(-0.3)
+"""Where a child's centre may be: a 10 x 6 m room with a 1.2 m passage going on north
+from the middle of its north wall, shrunk by the child's clearance."""
+
+IN_PASSAGE = np.column_stack([np.full(4, 5.0), np.linspace(8.0, 11.0, 4)])
+IN_ROOM = np.array([[2.0, 2.0], [8.0, 2.0], [3.0, 4.5], [7.0, 4.5]])
+
+
+@pytest.mark.parametrize(
+    ("station", "stops", "reached"),
+    [
+        # The parent in the passage's mouth: the children, arriving in the room, cannot
+        # pass it into the passage.
+        ((5.0, 5.6), IN_PASSAGE, False),
+        # The same parent does not keep them from the room's stops.
+        ((5.0, 5.6), IN_ROOM, True),
+        # Nor from the passage's stops when they are mostly in the room.
+        ((5.0, 5.6), np.vstack([IN_ROOM, IN_PASSAGE[:1]]), True),
+        # A parent in the room, clear of the mouth, leaves the passage open.
+        ((5.0, 2.5), IN_PASSAGE, True),
+        # A parent in the passage: the children may arrive from behind it as well.
+        ((5.0, 7.0), IN_PASSAGE[1:], False),
+    ],
+)
+def test_a_parent_in_a_passages_mouth_cuts_the_children_off_the_stops_beyond(
+    station, stops, reached
+):
+    assert stops_reached(ROOM, np.array(station), stops) is reached

@@ -14,7 +14,7 @@ from twin.planning import floor_shapes
 from twin.planning.boxes import boxed_space
 from twin.planning.frames import MapPose
 from twin.planning.site import _space
-from twin.planning.stations import NoStationError, choose_station
+from twin.planning.stations import REACHED, NoStationError, choose_station
 from twin.scenario.loader import validate_model
 from twin.scenario.robots import INSTRUMENT_HEIGHT
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise
@@ -97,3 +97,21 @@ def test_a_station_from_which_no_stop_works_is_passed_over(site):
     assert not np.allclose(chosen.xy, first.xy)
     with pytest.raises(NoStationError, match=r"leaves a child a place in it .* tried"):
         station(space, reachable, camera, gives_data=lambda xy: False)
+
+
+def test_a_station_the_children_reach_the_stops_from_is_preferred(site):
+    # The first station that gives data but stands between the children and its stops
+    # is kept only where no later one lets them pass.
+    space, reachable = site
+    camera = ceiling_camera(70.0)
+    first = station(space, reachable, camera, gives_data=lambda xy: 1)
+    reached = station(
+        space,
+        reachable,
+        camera,
+        gives_data=lambda xy: 1 if np.allclose(xy, first.xy) else REACHED,
+    )
+    assert not np.allclose(reached.xy, first.xy)
+    assert reached.visible <= first.visible
+    # Where none lets them pass, the first that gives data: the best.
+    assert np.allclose(first.xy, station(space, reachable, camera).xy)
