@@ -325,10 +325,12 @@ def _without(
 
 
 def _min_visible(partial: Mapping[str, float]) -> float:
-    """The scenario's ``calibration.min_visible_fraction`` where a station sees less than
-    :data:`STATION_NEED` (``partial``: by camera, the fraction): a percent under the least
+    """The scenario's ``calibration.min_visible_fraction``: :data:`STATION_NEED`, or where
+    a station sees less (``partial``: by camera, the fraction), a percent under the least
     of those, to the percent below (the scenario's check computes the fraction again, in
     the boxes laid in W)."""
+    if not partial:
+        return STATION_NEED
     return max(STATION_FLOOR - 0.01, math.floor(100 * min(partial.values())) / 100 - 0.01)
 
 
