@@ -9,15 +9,19 @@ approximate poses and nominal intrinsics, in the map's frame), the planner:
    map's x-axis) as the world frame W;
 2. lays the map's blocked floor as boxes in W (:mod:`twin.planning.boxes`), which the
    scenario does not write out: it references the map (``[space.map]``) and its hash;
-3. chooses each camera's station (:mod:`twin.planning.stations`);
+   a camera on a wall's face is moved off the wall's box
+   (:mod:`twin.planning.site_cameras`, which also reads the cameras file);
+3. chooses each camera's station (:mod:`twin.planning.stations`), one from which the
+   children reach the data stops past the standing parent where one is;
 4. orders the visits by the shortest tour over the stations (:mod:`twin.planning.tour`)
    unless the user gives the order, with a return to the start if asked;
 5. routes the parent between them by shortest paths with the CPS formation's clearance
    (:mod:`twin.planning.route`);
 6. places the children beside the start.
 
-The result is an ordinary scenario (a mapping, validated by the scenario loader) with a
-``[site]`` section that keeps the map and the map-to-W transform.
+The result is an ordinary scenario (a mapping, validated by the scenario loader, written
+by :mod:`twin.planning.site_scenario`) with a ``[site]`` section that keeps the map and
+the map-to-W transform.
 """
 
 from __future__ import annotations
