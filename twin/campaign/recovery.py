@@ -9,7 +9,7 @@ hidden, out of the instrument's range, or in line with the other child; a shorte
 keeps the group where the plan saw it.
 
 - A child the parent cannot measure at its stop first drives back to its last stand, is
-  measured there, and drives to its stop again (:func:`drive_again`, event
+  measured there, and drives to its stop again (:meth:`LegRecovery.drive_again`, event
   ``child_drove_again``). That failing, the leg is recovered:
 - the child drives back the way it came (the route abreast of its stop, the route's
   corners, its last stand, where the parent measured it from this station, then a place
@@ -30,17 +30,16 @@ campaign is aborted, naming the place.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, NoReturn
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.campaign.aborted import CampaignAborted
+from twin.campaign.parent_fix import ParentFix
 from twin.campaign.strategy import Leg, Move
 from twin.localization.observation import ChildObservation
 from twin.localization.pose import ParentPose
-
-if TYPE_CHECKING:
-    from twin.campaign.travel import Travel
 
 BACK_OFF_APART = 0.1
 """Places of a child's way back closer than this, m, are one place."""
@@ -66,42 +65,6 @@ def _at(xy: NDArray[np.float64]) -> str:
     return f"({xy[0]:.2f}, {xy[1]:.2f}) m"
 
 
-def _count(travel: Travel) -> None:
-    """One more recovery in a row.
-
-    Raises:
-        NoProgress: the recoveries in a row reached their bound.
-    """
-    bound = travel.max_recoveries
-    if bound is not None and travel.recoveries >= bound:
-        raise travel.no_progress("recoveries of a leg in a row", travel.recoveries, bound)
-    travel.recoveries += 1
-
-
-def drive_again(travel: Travel, move: Move) -> ChildObservation | None:
-    """A child the parent cannot measure where it stopped, turned or not, may have
-    stopped off its goal (its odometry carries its heading's error) behind what the
-    plan kept clear: it drives back to where it stood at the parent's last fix (which
-    the parent saw from where it stands), is measured there and its odometry
-    corrected, and drives to its stop again. Its observation there, or None."""
-    child = move.robot
-    if child not in travel.placed:
-        return None
-    base = travel.rig.children[child]
-    stand = travel.cps.child_position(child)[0][:2]
-    travel.journal.event("child_drove_again", "back to its last stand and again", child)
-    heading = math.atan2(*(stand - travel.child_pose(child)[:2])[::-1])
-    if not travel._drive(base, stand, travel._showing(stand, heading)).reached:
-        return None
-    seen = travel.measure(child)
-    if seen is None:
-        return None
-    travel._correct_child_pose(child, seen, travel.cps.parent)
-    if not travel.drive_along(base, move):
-        return None
-    return travel.place_child_turning(child)
-
-
 def _way_back(move: Move, stand: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """The places a child passed on ``move`` from its ``stand``, from its stop back: the
     route abreast of the stop, the route's corners, where it joined the route, the stand
@@ -114,89 +77,125 @@ def _way_back(move: Move, stand: NDArray[np.float64]) -> list[NDArray[np.float64
     return way
 
 
-def recover_child(travel: Travel, move: Move) -> NoReturn:
-    """The standing parent cannot measure ``move``'s child at its stop: it backs off the
-    way it came (see the module), measured wherever each drive ends until the parent
-    finds it, and is placed there.
+class LegRecovery(ParentFix):
+    """The recovery of a failed leg, for :class:`twin.campaign.travel.Travel` (which
+    provides the drives, the measurements and the placing of a child)."""
 
-    Raises:
-        LegRecovered: the child was placed where it backed off to.
-        CampaignAborted: it was measured nowhere (the message names its stop).
-        NoProgress: the recoveries in a row reached their bound.
-    """
-    from twin.campaign.travel import CampaignAborted
+    recoveries: int
+    max_recoveries: int | None
 
-    child = move.robot
-    stop = np.asarray(move.stop.xy, dtype=float)
-    if child not in travel.placed:
+    def _count_recovery(self) -> None:
+        """One more recovery in a row.
+
+        Raises:
+            NoProgress: the recoveries in a row reached their bound.
+        """
+        bound = self.max_recoveries
+        if bound is not None and self.recoveries >= bound:
+            raise self.no_progress("recoveries of a leg in a row", self.recoveries, bound)
+        self.recoveries += 1
+
+    def drive_again(self, move: Move) -> ChildObservation | None:
+        """A child the parent cannot measure where it stopped, turned or not, may have
+        stopped off its goal (its odometry carries its heading's error) behind what the
+        plan kept clear: it drives back to where it stood at the parent's last fix (which
+        the parent saw from where it stands), is measured there and its odometry
+        corrected, and drives to its stop again. Its observation there, or None."""
+        child = move.robot
+        if child not in self.placed:
+            return None
+        base = self.rig.children[child]
+        stand = self.cps.child_position(child)[0][:2]
+        self.journal.event("child_drove_again", "back to its last stand and again", child)
+        heading = math.atan2(*(stand - self.child_pose(child)[:2])[::-1])
+        if not self._drive(base, stand, self._showing(stand, heading)).reached:
+            return None
+        seen = self.measure(child)
+        if seen is None:
+            return None
+        self._correct_child_pose(child, seen, self.cps.parent)
+        if not self.drive_along(base, move):
+            return None
+        return self.place_child_turning(child)
+
+    def recover_child(self, move: Move) -> NoReturn:
+        """The standing parent cannot measure ``move``'s child at its stop: it backs off the
+        way it came (see the module), measured wherever each drive ends until the parent
+        finds it, and is placed there.
+
+        Raises:
+            LegRecovered: the child was placed where it backed off to.
+            CampaignAborted: it was measured nowhere (the message names its stop).
+            NoProgress: the recoveries in a row reached their bound.
+        """
+        child = move.robot
+        stop = np.asarray(move.stop.xy, dtype=float)
+        if child not in self.placed:
+            raise CampaignAborted(
+                f"the parent cannot measure {child} at its stop {_at(stop)}, and it has no "
+                "stand measured before to back off to"
+            )
+        self._count_recovery()
+        base = self.rig.children[child]
+        stand = self.cps.child_position(child)[0][:2]
+        way = _way_back(move, stand)
+        # From the place of the way nearest where the child is (its stop; its stand, if it
+        # stopped there on its drive again).
+        here = self.child_pose(child)[:2]
+        way = way[int(np.argmin([np.linalg.norm(p - here) for p in way])) :]
+        # A stand the child's estimate puts against a wall (a doorway's side) is refused: a
+        # place a quarter of the way from it to where the child came from, after it.
+        way.append(stand + 0.25 * ((way[-2] if len(way) > 1 else stop) - stand))
+        # Then places on the straight line from the stand to the stop (a turn's inside).
+        way += [stand + f * (stop - stand) for f in BACK_OFF_FRACTIONS]
+        for k, place in enumerate(way):
+            heading = math.atan2(*(place - self.child_pose(child)[:2])[::-1])
+            # Measured where it stopped, got there or not (short of a refused goal).
+            self._drive(base, place, self._showing(place, heading))
+            last = k >= len(way) - 2 - len(BACK_OFF_FRACTIONS)
+            placed = self.place_child_turning(child) if last else self.place_child(child)
+            if placed is not None:
+                message = (
+                    f"the parent cannot measure it at its stop {_at(stop)}: backed off to "
+                    f"{_at(place)}, the leg planned again shorter"
+                )
+                self.journal.event(
+                    "child_backed_off", message, child, x=float(place[0]), y=float(place[1])
+                )
+                raise LegRecovered("child_backed_off", message)
         raise CampaignAborted(
-            f"the parent cannot measure {child} at its stop {_at(stop)}, and it has no "
-            "stand measured before to back off to"
+            f"the parent cannot measure {child} at its stop {_at(stop)}, nor on its way back "
+            f"to its last stand {_at(stand)}"
         )
-    _count(travel)
-    base = travel.rig.children[child]
-    stand = travel.cps.child_position(child)[0][:2]
-    way = _way_back(move, stand)
-    # From the place of the way nearest where the child is (its stop; its stand, if it
-    # stopped there on its drive again).
-    here = travel.child_pose(child)[:2]
-    way = way[int(np.argmin([np.linalg.norm(p - here) for p in way])) :]
-    # A stand the child's estimate puts against a wall (a doorway's side) is refused: a
-    # place a quarter of the way from it to where the child came from, after it.
-    way.append(stand + 0.25 * ((way[-2] if len(way) > 1 else stop) - stand))
-    # Then places on the straight line from the stand to the stop (a turn's inside).
-    way += [stand + f * (stop - stand) for f in BACK_OFF_FRACTIONS]
-    for k, place in enumerate(way):
-        heading = math.atan2(*(place - travel.child_pose(child)[:2])[::-1])
-        # Measured where it stopped, got there or not (short of a refused goal).
-        travel._drive(base, place, travel._showing(place, heading))
-        last = k >= len(way) - 2 - len(BACK_OFF_FRACTIONS)
-        placed = travel.place_child_turning(child) if last else travel.place_child(child)
-        if placed is not None:
+
+    def recover_parent(self, leg: Leg, before: ParentPose) -> NoReturn:
+        """The parent cannot fix its pose after ``leg``: it drives back along its move to
+        ``before`` (its pose at its last fix) and fixes it there.
+
+        Raises:
+            LegRecovered: the parent fixed its pose where it backed off to.
+            CampaignAborted: it could not fix it there either (the message names both places).
+            NoProgress: the recoveries in a row reached their bound.
+        """
+        stop = np.asarray(leg.parent.stop.xy, dtype=float)
+        back = np.asarray(before.translation[:2], dtype=float)
+        self._count_recovery()
+        parent = self.rig.parent
+        for corner in reversed(leg.parent.corners):
+            if not self._go(parent, np.asarray(corner, dtype=float)).reached:
+                break
+        self._go(parent, back, before.yaw)
+        if self.fix_parent():
             message = (
-                f"the parent cannot measure it at its stop {_at(stop)}: backed off to "
-                f"{_at(place)}, the leg planned again shorter"
+                f"no fix at {_at(stop)}: back at its last fix {_at(back)}, the leg planned again "
+                "shorter"
             )
-            travel.journal.event(
-                "child_backed_off", message, child, x=float(place[0]), y=float(place[1])
+            self.journal.event(
+                "parent_backed_off", message, parent.name, x=float(back[0]), y=float(back[1])
             )
-            raise LegRecovered("child_backed_off", message)
-    raise CampaignAborted(
-        f"the parent cannot measure {child} at its stop {_at(stop)}, nor on its way back "
-        f"to its last stand {_at(stand)}"
-    )
-
-
-def recover_parent(travel: Travel, leg: Leg, before: ParentPose) -> NoReturn:
-    """The parent cannot fix its pose after ``leg``: it drives back along its move to
-    ``before`` (its pose at its last fix) and fixes it there.
-
-    Raises:
-        LegRecovered: the parent fixed its pose where it backed off to.
-        CampaignAborted: it could not fix it there either (the message names both places).
-        NoProgress: the recoveries in a row reached their bound.
-    """
-    from twin.campaign.travel import CampaignAborted
-
-    stop = np.asarray(leg.parent.stop.xy, dtype=float)
-    back = np.asarray(before.translation[:2], dtype=float)
-    _count(travel)
-    parent = travel.rig.parent
-    for corner in reversed(leg.parent.corners):
-        if not travel._go(parent, np.asarray(corner, dtype=float)).reached:
-            break
-    travel._go(parent, back, before.yaw)
-    if travel.fix_parent():
-        message = (
-            f"no fix at {_at(stop)}: back at its last fix {_at(back)}, the leg planned again "
-            "shorter"
+            raise LegRecovered("parent_backed_off", message)
+        raise CampaignAborted(
+            f"the parent could not fix its pose from the children at {_at(stop)}, nor back at its "
+            f"last fix {_at(back)} (if they may move while the parent drives, say how far in "
+            "campaign.child_creep_m)"
         )
-        travel.journal.event(
-            "parent_backed_off", message, parent.name, x=float(back[0]), y=float(back[1])
-        )
-        raise LegRecovered("parent_backed_off", message)
-    raise CampaignAborted(
-        f"the parent could not fix its pose from the children at {_at(stop)}, nor back at its "
-        f"last fix {_at(back)} (if they may move while the parent drives, say how far in "
-        "campaign.child_creep_m)"
-    )

@@ -19,9 +19,10 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from twin.campaign.aborted import CampaignAborted
 from twin.campaign.control_points import ControlPoints
 from twin.campaign.journal import Journal, RobotJournal
-from twin.campaign.parent_fix import FIX_ATTEMPTS, SIDESTEPS, ParentFix
+from twin.campaign.parent_fix import FIX_ATTEMPTS, SIDESTEPS
 from twin.campaign.plan.clearance import (
     CHILD_BODY,
     PARENT_BODY,
@@ -29,7 +30,7 @@ from twin.campaign.plan.clearance import (
 )
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.ways import ROBOT_MARGIN, robots_clear, way_to
-from twin.campaign.recovery import drive_again, recover_child, recover_parent
+from twin.campaign.recovery import LegRecovery
 from twin.campaign.shooting import measure_child, moved_between, same_marker
 from twin.campaign.strategy import Leg, Move
 from twin.hal.devices import MobileBase
@@ -74,10 +75,6 @@ NO_PROGRESS = "no_progress"
 """The failure of a loop of the campaign that reached its bound (:mod:`twin.campaign.bounds`)."""
 
 
-class CampaignAborted(RuntimeError):
-    """The group cannot go on (CPS lost both children, or no leg can be planned)."""
-
-
 class NoProgress(CampaignAborted):
     """A loop of the campaign reached its bound (:mod:`twin.campaign.bounds`): the campaign
     cannot progress. Made and recorded by :meth:`Travel.no_progress`.
@@ -104,7 +101,7 @@ class NoProgress(CampaignAborted):
 __all__ = ["FIX_ATTEMPTS", "SIDESTEPS", "CampaignAborted", "NoProgress", "Travel"]
 
 
-class Travel(ParentFix):
+class Travel(LegRecovery):
     """Moves the robots and keeps the CPS state of the group.
 
     Args:
@@ -166,13 +163,13 @@ class Travel(ParentFix):
                 self.journal.failure(
                     "child_blocked", "the child stopped short of its stop", move.robot
                 )
-            if self.place_child_turning(move.robot) is None and drive_again(self, move) is None:
-                recover_child(self, move)
+            if self.place_child_turning(move.robot) is None and self.drive_again(move) is None:
+                self.recover_child(move)
         for child in order[:-1]:
             self.check_stayed(child, order[-1])
         reached = self.drive_along(self.rig.parent, leg.parent)
         if not self.fix_parent():
-            recover_parent(self, leg, before)
+            self.recover_parent(leg, before)
         self.recoveries = 0
         if not reached:
             self.journal.failure(
