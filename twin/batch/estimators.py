@@ -2,7 +2,7 @@
 computes from one trial's measurements, for T trials at once.
 
 - :func:`observe`: a child's reference point, its covariance and its marker's pose from
-  three levelled cube shots (:func:`twin.localization.observation_batch.observe_child_batch`);
+  three levelled cube shots (:func:`twin.localization.observation.observe_child_batch`);
 - :func:`leds`: a stop's LED positions from its marker's pose
   (:func:`twin.instruments.marker_pose.led_positions_batch`);
 - :func:`calibrate`, :func:`evaluate`, :func:`truth_errors`: Tsai's calibration of a visit
@@ -10,7 +10,7 @@ computes from one trial's measurements, for T trials at once.
   and the Table III metrics (:mod:`calib.metrics`);
 - :func:`points_effect`: the calibrated camera's error from its points' errors.
 
-The CPS state is :class:`twin.localization.sequence_batch.CpsBatch` itself. The positioning
+The CPS state is :class:`twin.localization.sequence.CpsBatch` itself. The positioning
 numbers are the campaign's scalar code's bit for bit, the calibrations scipy's
 (:func:`calib.calibrate_tsai`) to a small fraction of their standard deviations (the tests
 hold them to it); no trial's numbers depend on the other trials of its batch.
