@@ -37,9 +37,10 @@ from twin.instruments.noise import cartesian_covariance
 from twin.instruments.polar import polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
+from twin.localization.joint_state import CpsBatch
 from twin.localization.leapfrog import CHILDREN, LeapfrogConfig, LeapfrogData, simulate_leapfrog
 from twin.localization.observation import ChildObservation, ChildObservationBatch
-from twin.localization.sequence import CpsBatch, CpsSequence
+from twin.localization.sequence import CpsSequence
 
 SOLVERS = ("closed_form", "wls")
 

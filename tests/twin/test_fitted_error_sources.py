@@ -214,8 +214,8 @@ def _creeping_cps(creep_known: float, creep: float, trials: int = 4000, seed: in
     noise, creeping by ``creep`` while the parent drives 5 m, measured again with 1 mm
     noise. Returns the sequence, its solution and the parent's true translation."""
     from calib.rotation import rot_z
+    from twin.localization.joint_state import CpsBatch
     from twin.localization.observation import ChildObservationBatch
-    from twin.localization.sequence import CpsBatch
 
     rng = np.random.default_rng(seed)
     names = ["c1", "c2"]

@@ -10,7 +10,7 @@ computes from one trial's measurements, for T trials at once.
   and the Table III metrics (:mod:`calib.metrics`);
 - :func:`points_effect`: the calibrated camera's error from its points' errors.
 
-The CPS state is :class:`twin.localization.sequence.CpsBatch` itself. The positioning
+The CPS state is :class:`twin.localization.joint_state.CpsBatch` itself. The positioning
 numbers are the campaign's scalar code's bit for bit, the calibrations scipy's
 (:func:`calib.calibrate_tsai`) to a small fraction of their standard deviations (the tests
 hold them to it); no trial's numbers depend on the other trials of its batch.

@@ -12,7 +12,7 @@ fidelity:
 
 The estimators are the campaign's, as array code (:mod:`twin.batch.estimators`): marker
 fits and centroids, CPS with its joint covariance and consistency tests
-(:class:`twin.localization.sequence.CpsBatch`), LED positions from the marker's pose,
+(:class:`twin.localization.joint_state.CpsBatch`), LED positions from the marker's pose,
 Tsai's calibration of every visit and the Table III metrics.
 
 A data point holds the LEDs the camera found in the noise-free plan (:class:`twin.batch.
@@ -67,8 +67,8 @@ from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import survey_loading
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 from twin.localization.input_checks import ConvergenceWarning
+from twin.localization.joint_state import CpsBatch
 from twin.localization.observation import ChildObservationBatch
-from twin.localization.sequence import CpsBatch
 from twin.scenario.schema import Noise
 from twin.sim.capture import in_image
 

@@ -17,8 +17,9 @@ raises or warns where it flags.
 - :mod:`.observation`: ``ChildObservation`` (a child's cube centroid as measured; the
   marker fit rejects a wrong prism with ``InconsistentMarkerError``) and
   ``ChildObservationBatch`` over T trials.
-- :mod:`.sequence`: ``CpsBatch``, the joint estimates of T trials, and ``CpsSequence``,
-  one trial with the record of every step.
+- :mod:`.joint_state`: ``CpsBatch``, the joint estimates of T trials and their two
+  kinds of step.
+- :mod:`.sequence`: ``CpsSequence``, one trial with the record of every step.
 - :mod:`.leapfrog`: a pure-numpy straight leapfrog simulator and Monte Carlo.
 - :mod:`.network`: a whole campaign's measurements as one network (stations, stands,
   control points, LED stops, cameras).

@@ -5,10 +5,11 @@ import pytest
 
 from calib.rotation import rot_z
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE, chi2_threshold
+from twin.localization.joint_state import CpsBatch
 from twin.localization.leapfrog import CHILDREN, STEP_DURATION, LeapfrogConfig, simulate_leapfrog
 from twin.localization.observation import ChildObservation, ChildObservationBatch
 from twin.localization.pose import ParentPose, ParentPoseBatch
-from twin.localization.sequence import CpsBatch, CpsSequence
+from twin.localization.sequence import CpsSequence
 
 SOLVERS = ("closed_form", "wls")
 N_TRIALS = 40
