@@ -57,7 +57,7 @@ def trial(job: tuple[str, int]) -> dict[str, Any]:
     from twin.campaign.network_log import network_from_log
     from twin.localization.adjustment import adjust_network
     from twin.record import read_log
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
     from twin.scenario import load_scenario
 
     name, seed = job

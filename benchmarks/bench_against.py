@@ -38,7 +38,7 @@ BATCH = r"""
 import hashlib, json, sys, tempfile, time
 import twin.sim  # noqa: F401
 import twin
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 seeds = [int(s) for s in sys.argv[2:]]
 times, digest = [], hashlib.sha256()
 for seed in seeds:

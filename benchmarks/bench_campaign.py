@@ -21,7 +21,7 @@ from rich.table import Table
 
 import twin.sim  # noqa: F401  # isort: skip
 from twin.report.paper import table_iii
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 
 HALL = Path(__file__).resolve().parents[1] / "scenarios" / "paper_hall.toml"
 PARTS = ("physics", "render", "detection", "planning", "solving", "other")

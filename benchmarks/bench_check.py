@@ -31,8 +31,8 @@ import numpy as np
 
 from calib.rotation import rotation_angle_between
 from twin.campaign.check import check_cameras
-from twin.run_cameras import latest_cameras
-from twin.runner import built_markers, check_noise_seed, run_scenario
+from twin.run.run_cameras import latest_cameras
+from twin.run.runner import built_markers, check_noise_seed, run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.schema import Faults, MovedCamera
 from twin.sim.rig import build_sim_rig

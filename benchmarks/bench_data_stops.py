@@ -24,7 +24,7 @@ from twin.campaign.plan.accurate_stops import (
 )
 from twin.campaign.plan.view_stops import body_points, view_stops
 from twin.instruments.total_station import TotalStationSpec
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -23,7 +23,7 @@ from rich.table import Table
 
 import twin.sim  # noqa: F401  # isort: skip
 from twin.montecarlo import run_montecarlo
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 HALL = Path(__file__).resolve().parents[1] / "scenarios" / "paper_hall.toml"

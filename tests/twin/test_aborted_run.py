@@ -13,7 +13,7 @@ from twin.cli.run import print_results
 from twin.hal.errors import DeviceLostError
 from twin.hal.wrappers import MobileBaseWrapper, wrapped
 from twin.record import read_log
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / "scenarios" / "smoke.toml"

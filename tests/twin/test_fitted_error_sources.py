@@ -19,7 +19,7 @@ from twin.hal.readings import LedObservation
 from twin.instruments.noise import polar_sigmas
 from twin.instruments.total_station import ARCSEC, TotalStationSpec
 from twin.montecarlo.sources import isolate
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import ScenarioError, load_scenario, scenario_from_dict
 from twin.scenario.overrides import with_values
 from twin.sim.rig.creep import CreepingChildren

@@ -11,9 +11,9 @@ from numpy.testing import assert_allclose
 from calib.io.camera_files import camera_from_dict, load_camera_covariance
 from twin.campaign.check.calibration import calibration_covariance
 from twin.campaign.records import CALIBRATION
-from twin.logged_points import gathered, visit_points
 from twin.record import read_log
-from twin.runner import run_scenario
+from twin.run.logged_points import gathered, visit_points
+from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -186,7 +186,7 @@ def test_a_run_folder_holds_one_run(tmp_path):
 
 @pytest.mark.parametrize("seed", [-1, 2**63, 1.5])
 def test_a_run_refuses_a_seed_out_of_range_before_writing(tmp_path, seed):
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     smoke = Path(__file__).resolve().parents[2] / "scenarios" / "smoke.toml"
     with pytest.raises(ValueError, match=r"a seed must be a whole number from 0 to 2\^63 - 1"):

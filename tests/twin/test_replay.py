@@ -15,9 +15,9 @@ from calib.io.camera_files import load_camera_identity
 from twin.campaign.log_results import META
 from twin.cli import main
 from twin.record import McapRecorder, read_log
-from twin.replay import replay_log, run_scenario_of
-from twin.run_cameras import IDENTITY_KEYS as KEYS
-from twin.runner import check_scenario, run_scenario
+from twin.run.replay import replay_log, run_scenario_of
+from twin.run.run_cameras import IDENTITY_KEYS as KEYS
+from twin.run.runner import check_scenario, run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.digest import scenario_digest
 

@@ -11,7 +11,7 @@ import pytest
 
 from calib.io.camera_files import camera_to_dict, save_camera
 from calib.opencv_camera import tsai2opencv
-from twin.run_cameras import CamerasFolderError, camera_identity, latest_cameras
+from twin.run.run_cameras import CamerasFolderError, camera_identity, latest_cameras
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.schema import Faults, MovedCamera
 

@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     """Check; exit code 0 (all checked, none moved), 1 (one moved or not checked), 2 for
     bad input, 130 when interrupted."""
     from twin.campaign.strategies import strategy_for
-    from twin.run_cameras import CamerasFolderError, latest_cameras
+    from twin.run.run_cameras import CamerasFolderError, latest_cameras
 
     console = Console(highlight=False, soft_wrap=True)
     sc = load_or_report(args.scenario, console)
@@ -196,13 +196,13 @@ def _check(
         "overwrite": args.overwrite,
     }
     if args.rig is None:
-        from twin.runner import check_scenario
+        from twin.run.runner import check_scenario
 
         fidelity = args.fidelity or "render"
         return check_scenario(sc, args.cameras, out, fidelity=fidelity, seed=args.seed, **common)
     from twin.drivers.build import DeviceConnectError
     from twin.drivers.rig_file import RigFileError
-    from twin.hardware_run import check_on_rig
+    from twin.run.hardware_run import check_on_rig
 
     try:
         return check_on_rig(sc, args.rig, args.cameras, out, **common)

@@ -63,7 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Replay; exit code 0, 1 without calibrations, 2 for bad input."""
     from twin.cli.run import print_results
-    from twin.replay import replay_log
+    from twin.run.replay import replay_log
     from twin.scenario import ScenarioError
 
     console = Console(highlight=False, soft_wrap=True)

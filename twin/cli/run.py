@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                 if results is None:
                     return 2
             else:
-                from twin.runner import run_scenario
+                from twin.run.runner import run_scenario
 
                 results = run_scenario(
                     sc,
@@ -129,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     print_results(results, console)
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")
-    from twin.campaign_run import dropped_visits
+    from twin.run.campaign_run import dropped_visits
 
     dropped = dropped_visits(results, sc)
     print_dropped(dropped, len(sc.calibration.visits), console)
@@ -137,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_dropped(dropped: list[dict], visits: int, console: Console) -> None:
-    """The visits a run dropped (:func:`twin.campaign_run.dropped_visits`), one a line:
+    """The visits a run dropped (:func:`twin.run.campaign_run.dropped_visits`), one a line:
     camera, visit number and the recorded reason."""
     if not dropped:
         return
@@ -159,7 +159,7 @@ def _run_on_rig(
     or a device that cannot be opened."""
     from twin.drivers.build import DeviceConnectError
     from twin.drivers.rig_file import RigFileError
-    from twin.hardware_run import run_on_rig
+    from twin.run.hardware_run import run_on_rig
 
     try:
         return run_on_rig(

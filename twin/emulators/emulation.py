@@ -298,7 +298,7 @@ def start_emulation(
     from twin.emulators.led_frames import GeometricLedFrames, RenderedLedFrames
     from twin.emulators.pioneer_body import PioneerBody
     from twin.emulators.render_thread import RenderThread
-    from twin.runner import built_markers
+    from twin.run.runner import built_markers
     from twin.sim.rig import FIDELITIES, build_sim_rig
     from twin.sim.world import build_world
 

@@ -1,6 +1,6 @@
 """One Monte-Carlo trial: the whole campaign with one seed, as rows of the trial table.
 
-A trial runs :func:`twin.runner.run_scenario` in a temporary folder and turns its results
+A trial runs :func:`twin.run.runner.run_scenario` in a temporary folder and turns its results
 and log into one row per planned camera visit (a visit that was not calibrated has a row
 with ``calibrated`` 0 and NaN errors), so that every trial has the same rows.
 """
@@ -100,7 +100,7 @@ class TrialResult:
 def run_trial(spec: TrialSpec) -> TrialResult:
     """Run one trial (in this process) and return its rows."""
     from twin.record import read_log
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     t0 = time.perf_counter()
     scenario = isolate(spec.scenario, spec.config)

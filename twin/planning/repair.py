@@ -82,7 +82,7 @@ class TrialRun:
             over its better visit) from the covariance the campaign propagates with the
             scenario's noise.
         calibrated: the cameras calibrated at least once. visits: the visits calibrated.
-        dropped: the visits dropped (:func:`twin.campaign_run.dropped_visits`).
+        dropped: the visits dropped (:func:`twin.run.campaign_run.dropped_visits`).
         failed: the first of them diagnosed; None if none was dropped.
         missed: why each camera not calibrated was not (``reason: message`` of its first
             dropped visit, or ``not visited``).
@@ -106,10 +106,10 @@ def trial_run(scenario: Scenario) -> TrialRun:
     campaign told the scenario's noise, so that it propagates the covariance the
     predictions come from), and read what it gave (see :class:`TrialRun`)."""
     from twin.campaign.records import PARENT_FIX, STAGE
-    from twin.campaign_run import dropped_visits
     from twin.montecarlo.prediction import predictions_from_log
     from twin.record import read_log
-    from twin.runner import run_scenario
+    from twin.run.campaign_run import dropped_visits
+    from twin.run.runner import run_scenario
 
     with tempfile.TemporaryDirectory() as tmp:
         results = run_scenario(

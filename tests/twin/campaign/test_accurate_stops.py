@@ -82,7 +82,7 @@ def test_accuracy_stops_predict_a_lower_camera_position_covariance(name):
 def _geometric_errors(sc, seeds) -> np.ndarray:
     """The true camera-position error (mm) of the first calibration of each seed's
     geometric run."""
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     errors = []
     for seed in seeds:
@@ -122,7 +122,7 @@ def test_partial_points_reach_the_calibration(smoke):
     from twin.campaign.records import POINT
     from twin.montecarlo.prediction import predictions_from_log
     from twin.record.mcap_log import read_log
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     sc = _with(smoke, "accuracy")
     with tempfile.TemporaryDirectory() as tmp:
@@ -189,7 +189,7 @@ def test_points_variance_with_stops_of_different_led_counts():
 def test_the_planned_strategy_is_the_papers_with_stops_for_accuracy(smoke, tmp_path):
     from twin.campaign import DEFAULT_STRATEGY, strategy_named
     from twin.campaign.paper_strategy import PlannedStrategy
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     assert DEFAULT_STRATEGY == "planned"
     assert isinstance(strategy_named("planned"), PlannedStrategy)

@@ -15,8 +15,8 @@ from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
 from twin.campaign.network_log import LogNetworkError, network_from_log
 from twin.campaign.records import PARENT_FIX
 from twin.record import read_log
-from twin.replay import replay_log
-from twin.runner import run_scenario
+from twin.run.replay import replay_log
+from twin.run.runner import run_scenario
 from twin.scenario import ScenarioError
 from twin.scenario.loader import scenario_from_dict
 
@@ -187,7 +187,7 @@ def test_a_surveyed_markers_error_is_adjusted_from_the_log(tmp_path):
     # noise cannot explain the residuals: chi2 / dof of tens).
     from twin.instruments.marker_pose import MarkerPose, survey_covariance
     from twin.report.markdown import render_markdown
-    from twin.runner import built_markers
+    from twin.run.runner import built_markers
     from twin.scenario.overrides import with_values
 
     values = {"marker.survey_sigma_m": 0.003, "noise.marker_geometry_m": 0.003}

@@ -28,7 +28,7 @@ CAMPAIGN_ALLOWED = (
     "twin.truth",
     "twin.planning.route",  # shortest paths over shapely geometry, nothing of a backend
 )
-CAMPAIGN_FORBIDDEN = (*BACKENDS, "twin.runner", "twin.record")
+CAMPAIGN_FORBIDDEN = (*BACKENDS, "twin.run", "twin.record")
 STRATEGY_MODULES = ("strategy.py", "paper_strategy.py", "strategies.py", "plan")
 SIM_FORBIDDEN = ("twin.localization", "twin.campaign")
 SIMULATED = ("noise", "faults", "sim")
@@ -144,7 +144,8 @@ def test_the_drivers_need_no_simulator(path):
 
 def test_a_run_on_real_devices_loads_no_simulator():
     code = (
-        "import sys, twin.hardware_run, twin.drivers.probe, twin.replay, twin.drivers.geocom\n"
+        "import sys, twin.run.hardware_run, twin.drivers.probe, twin.run.replay\n"
+        "import twin.drivers.geocom\n"
         "import twin.drivers.arcos.base, twin.drivers.arcos.leds, twin.drivers.camera\n"
         "bad = [m for m in sys.modules if m.startswith(('mujoco', 'twin.sim', 'twin.emulators'))]\n"
         "print(bad)\n"

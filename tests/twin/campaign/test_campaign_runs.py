@@ -17,7 +17,7 @@ from tests.twin.campaign.regression.cases import faulted
 from twin.campaign.records import CALIBRATION
 from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -13,7 +13,7 @@ from twin.hal.wrappers import MobileBaseWrapper, wrapped
 from twin.instruments.consistency import chi2_threshold
 from twin.localization.observation import ChildObservation
 from twin.report.reading import planned_visits
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -18,7 +18,7 @@ from twin.instruments.errors import (
     InstrumentTimeoutError,
 )
 from twin.record import read_log
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"

@@ -22,7 +22,7 @@ import pytest
 from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
 from twin.report.reading import planned_visits
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.overrides import with_values
 

@@ -18,7 +18,7 @@ from twin.localization.pose import ParentPose
 from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
 from twin.report.reading import planned_visits
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

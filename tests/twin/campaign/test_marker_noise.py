@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from twin.runner import built_markers
+from twin.run.runner import built_markers
 from twin.scenario import load_scenario
 from twin.sim.world import build_world
 

@@ -28,7 +28,7 @@ from twin.campaign.strategy import (
 )
 from twin.hal.wrappers import MobileBaseWrapper, TotalStationWrapper, wrapped
 from twin.instruments.errors import NoPrismInConeError
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.schema import StrategyName
 from twin.sim.rig import build_sim_rig

@@ -18,7 +18,7 @@ from twin.planning import floor_shapes as fs
 from twin.planning.floor_map import MapError
 from twin.planning.maps import load_map
 from twin.planning.site import PASSAGE_CLEARANCE, plan_site
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario.loader import scenario_from_dict
 
 LEG = 12.0

@@ -14,7 +14,7 @@ import pytest
 
 from calib.io.camera_files import camera_to_dict, load_camera_identity
 from twin.cli import main
-from twin.run_cameras import IDENTITY_KEYS, camera_identity
+from twin.run.run_cameras import IDENTITY_KEYS, camera_identity
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

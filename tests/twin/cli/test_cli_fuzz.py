@@ -341,7 +341,7 @@ def make_inputs(m: Path) -> Path:
     import tomli_w
 
     from tests.twin.planning.test_site import PILLAR, write_cameras, write_grid
-    from twin.runner import check_scenario, run_scenario
+    from twin.run.runner import check_scenario, run_scenario
 
     shutil.copy(SMOKE, m / "smoke.toml")
     (m / "other.toml").write_text(SMOKE.read_text().replace("f = 400.0", "f = 420.0"))

@@ -121,12 +121,12 @@ def test_every_command_names_why_it_was_interrupted(tmp_path, monkeypatch, capsy
     import twin.cli.check
     import twin.cli.site
     import twin.montecarlo
-    import twin.run_cameras
-    import twin.runner
+    import twin.run.run_cameras
+    import twin.run.runner
     from twin.cli import main
 
     # Wherever the interruption is caught, the reason is never empty.
-    monkeypatch.setattr(twin.runner, "run_scenario", _interrupt(message))
+    monkeypatch.setattr(twin.run.runner, "run_scenario", _interrupt(message))
     out = tmp_path / "run"
     assert main(["run", str(SMOKE), "--no-report", "--out", str(out)]) == EXIT_INTERRUPTED
     said = " ".join(capsys.readouterr().out.split())
@@ -136,7 +136,7 @@ def test_every_command_names_why_it_was_interrupted(tmp_path, monkeypatch, capsy
     assert main(["montecarlo", str(SMOKE), "--trials", "2", "--out", str(out)]) == 130
     said = " ".join(capsys.readouterr().out.split())
     assert f"interrupted ({reason}): the finished trials are in {out}; --resume continues" in said
-    monkeypatch.setattr(twin.run_cameras, "latest_cameras", lambda *_: None)
+    monkeypatch.setattr(twin.run.run_cameras, "latest_cameras", lambda *_: None)
     monkeypatch.setattr(twin.cli.check, "_check", _interrupt(message))
     out = tmp_path / "check"
     args = ["check", str(SMOKE), "--cameras", str(tmp_path), "--out", str(out)]

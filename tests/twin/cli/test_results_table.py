@@ -7,7 +7,7 @@ from pathlib import Path
 from rich.console import Console
 
 from twin.cli.run import print_results
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 
 SMOKE = Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml"
 

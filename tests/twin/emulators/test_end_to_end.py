@@ -26,10 +26,10 @@ from twin.drivers.rig_file import load_rig_file
 from twin.emulators.emulation import start_emulation
 from twin.emulators.geocom_faults import Fault
 from twin.hal.conformance import check_rig
-from twin.hardware_run import run_on_rig
 from twin.montecarlo.prediction import predictions_from_log
 from twin.record import read_log
-from twin.runner import run_scenario
+from twin.run.hardware_run import run_on_rig
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -12,7 +12,7 @@ import pytest
 from twin.montecarlo.paper_targets import TARGETS, trial_values
 from twin.montecarlo.run import run_montecarlo
 from twin.report.paper import TABLE_III
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"

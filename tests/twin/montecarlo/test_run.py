@@ -229,18 +229,18 @@ def test_the_command_refuses_bad_settings_with_exit_code_2(tmp_path, capsys):
 
 
 def test_a_trial_that_raises_is_named_and_the_finished_ones_are_kept(tmp_path, monkeypatch, capsys):
-    import twin.runner
+    import twin.run.runner
     from twin.cli import main
     from twin.montecarlo.seeds import trial_seed
 
-    real = twin.runner.run_scenario
+    real = twin.run.runner.run_scenario
 
     def second_fails(scenario, out_dir, **kwargs):
         if kwargs["seed"] == trial_seed(5, 1):
             raise ValueError("the children coincide")
         return real(scenario, out_dir, **kwargs)
 
-    monkeypatch.setattr(twin.runner, "run_scenario", second_fails)
+    monkeypatch.setattr(twin.run.runner, "run_scenario", second_fails)
     out = tmp_path / "mc"
     args = ["montecarlo", str(SMOKE), "--trials", "3", "--seed", "5", "--no-budget"]
     assert main([*args, "--fidelity", "geometric", "--out", str(out)]) == 1

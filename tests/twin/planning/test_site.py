@@ -15,7 +15,7 @@ from shapely.geometry import LineString, Point
 
 from twin.cli import main
 from twin.planning.frames import MapPose
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.cross_checks import scenario_station_visibility
 

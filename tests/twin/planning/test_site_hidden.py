@@ -11,7 +11,7 @@ import pytest
 from tests.twin.planning.test_site import CAMERAS, write_cameras, write_grid
 from twin.cli import main
 from twin.planning import site as site_module
-from twin.runner import run_scenario
+from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.cross_checks import scenario_station_visibility
 

@@ -15,8 +15,8 @@ from scipy.stats import chi2 as chi2_distribution
 
 from calib.io.camera_files import camera_from_dict, load_camera_covariance
 from calib.pose_change import moved_camera, pose_change
-from twin.run_cameras import latest_cameras
-from twin.runner import check_scenario, run_scenario
+from twin.run.run_cameras import latest_cameras
+from twin.run.runner import check_scenario, run_scenario
 from twin.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[4]

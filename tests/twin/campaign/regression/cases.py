@@ -117,7 +117,7 @@ def faulted(sc):
 
 def run_case(case: Case, out_dir: Path) -> dict[str, Any]:
     """The case's results as ``results.json`` holds them (JSON types)."""
-    from twin.runner import run_scenario
+    from twin.run.runner import run_scenario
 
     results = run_scenario(
         scenario_of(case),

@@ -3,7 +3,7 @@ check a run's calibrated cameras on them (:func:`check_on_rig`).
 
 The devices come from a rig file (:mod:`twin.drivers.rig_file`); the scenario still gives
 the map, the cameras' nominal poses, the route, the visits and the instrument's noise. The
-run is logged and written as a twin run is (:mod:`twin.campaign_run`). A run against
+run is logged and written as a twin run is (:mod:`twin.run.campaign_run`). A run against
 ``twin emulate`` also records the emulated world's cameras as the truth, so its results
 carry errors against the truth as a twin run's do.
 """
@@ -19,13 +19,13 @@ from twin.campaign import Progress
 from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
 from twin.campaign.strategy import Strategy
-from twin.campaign_run import run_campaign
-from twin.check_run import run_check
 from twin.drivers.build import build_rig, check_drivers
 from twin.drivers.rig_file import RigFile, RigFileError, check_fits, load_rig_file
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.record import McapRecorder
+from twin.run.campaign_run import run_campaign
+from twin.run.check_run import run_check
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.errors import ScenarioIssue
 from twin.truth import TRUTH_CAMERA
@@ -49,7 +49,7 @@ def run_on_rig(
 
     Args:
         scenario: a scenario or its file. rig_file: a rig file or its path.
-        out_dir, progress, report, strategy, overwrite: as :func:`twin.runner.run_scenario`.
+        out_dir, progress, report, strategy, overwrite: as :func:`twin.run.runner.run_scenario`.
 
     Returns:
         The results (also in ``results.json``).
@@ -94,20 +94,20 @@ def check_on_rig(
     overwrite: bool = False,
 ) -> dict[str, Any]:
     """Check on the devices of ``rig_file`` whether the cameras a run calibrated
-    (``cameras_dir``) are still where their calibrations say (:func:`twin.check_run.
+    (``cameras_dir``) are still where their calibrations say (:func:`twin.run.check_run.
     run_check`). The parent must stand where it stood at the calibration's first station,
     heading as it did: that station defines W.
 
     Args:
         scenario, rig_file: as :func:`run_on_rig`. cameras_dir, out_dir, stops,
             false_alarm_rate, min_pixel_sigma, progress, strategy, overwrite: as
-            :func:`twin.runner.check_scenario`.
+            :func:`twin.run.runner.check_scenario`.
 
     Raises:
         twin.drivers.rig_file.RigFileError: the rig file is bad or lacks a device the
             scenario needs; ImportError: a driver's optional package is missing;
-            twin.run_cameras.CamerasFolderError, ValueError,
-            twin.outputs.OutputError: as :func:`twin.check_run.run_check` (nothing is
+            twin.run.run_cameras.CamerasFolderError, ValueError,
+            twin.outputs.OutputError: as :func:`twin.run.check_run.run_check` (nothing is
             written). twin.drivers.build.DeviceConnectError: a device could not be opened
             (the log so far is kept).
     """

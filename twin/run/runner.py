@@ -6,13 +6,13 @@ that every reading goes to ``DIR/log.mcap`` as it arrives, and handed to
 :class:`twin.campaign.Campaign` with its strategy. The simulation records its own truth
 (camera poses, the instrument's true pose at every CPS fix) beside the readings, under
 ``/truth/`` (:mod:`twin.truth`). The results are then computed from the log alone
-(:func:`twin.campaign.log_results.results_from_log`), by :mod:`twin.campaign_run`:
+(:func:`twin.campaign.log_results.results_from_log`), by :mod:`twin.run.campaign_run`:
 
 - ``DIR/results.json``, ``DIR/cameras/`` (JSON, OpenCV YAML, ROS camera_info per
   calibration), ``DIR/figures/`` and ``DIR/report.md``.
 
 :func:`check_scenario` builds the same simulated rig for ``twin check``
-(:mod:`twin.check_run`): the calibrated cameras checked where the twin's world holds them.
+(:mod:`twin.run.check_run`): the calibrated cameras checked where the twin's world holds them.
 """
 
 from __future__ import annotations
@@ -28,12 +28,12 @@ from twin.campaign import Progress
 from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
 from twin.campaign.strategies import strategy_for
 from twin.campaign.strategy import Strategy
-from twin.campaign_run import RUN_OUTPUTS, run_campaign, write_cameras
-from twin.check_run import run_check
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.instruments.marker import MarkerAssembly
 from twin.record import McapRecorder
+from twin.run.campaign_run import RUN_OUTPUTS, run_campaign, write_cameras
+from twin.run.check_run import run_check
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.limits import check_seed
 from twin.scenario.schema import Noise
@@ -133,7 +133,7 @@ def check_scenario(
 ) -> dict[str, Any]:
     """Check in the twin whether the cameras a run calibrated (``cameras_dir``) are still
     where their calibrations say; write ``log.mcap``, ``check.json`` and the moved cameras'
-    files in ``out_dir`` (:func:`twin.check_run.run_check`).
+    files in ``out_dir`` (:func:`twin.run.check_run.run_check`).
 
     The twin's world is the scenario's, ``faults.moved_cameras`` included: a camera moved
     there is where the check finds it.
@@ -150,7 +150,7 @@ def check_scenario(
 
     Raises:
         ValueError: an unknown fidelity or strategy, a seed, stops or false-alarm rate out
-            of range; twin.run_cameras.CamerasFolderError: a cameras folder that cannot
+            of range; twin.run.run_cameras.CamerasFolderError: a cameras folder that cannot
             be checked; twin.outputs.OutputError: ``out_dir`` cannot be used. Nothing is
             written for any of these.
     """

@@ -23,12 +23,12 @@ from twin.campaign.adjusted_results import adjusted_results, adjustment_settings
 from twin.campaign.log_results import META, point_arrays, results_from_log
 from twin.campaign.network_log import CAMERA_MODES
 from twin.campaign.records import CALIBRATION, POINT
-from twin.campaign_run import write_cameras
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import read_log
 from twin.record.mcap_log import LogMessage
 from twin.report import write_report
-from twin.run_cameras import IDENTITY_KEYS
+from twin.run.campaign_run import write_cameras
+from twin.run.run_cameras import IDENTITY_KEYS
 from twin.scenario import Scenario, load_scenario
 from twin.scenario.digest import scenario_digest
 

@@ -1,6 +1,6 @@
 """Run the campaign on a rig, log every reading, and write what the run gives: the part of
-a run that does not depend on the backend (the twin's :mod:`twin.runner`, real devices'
-:mod:`twin.hardware_run`).
+a run that does not depend on the backend (the twin's :mod:`twin.run.runner`, real devices'
+:mod:`twin.run.hardware_run`).
 
 - ``DIR/log.mcap`` (every reading, as it arrives), ``DIR/results.json``, ``DIR/cameras/``
   (JSON with the camera's covariance, OpenCV YAML, ROS camera_info per calibration),
@@ -36,7 +36,7 @@ from twin.record import McapRecorder, read_log
 from twin.record.run_record import scenario_fields
 from twin.report import write_report
 from twin.report.reading import planned_visits
-from twin.run_cameras import camera_identity
+from twin.run.run_cameras import camera_identity
 from twin.scenario import Scenario
 
 RigOpener = Callable[[McapRecorder], tuple[Rig, Callable[[], None], dict[str, float]]]
@@ -185,15 +185,15 @@ def write_cameras(
 ) -> list[Path]:
     """Each calibrated camera as ``NAME_visitK.json``, ``.yaml`` (OpenCV) and
     ``.camera_info.yaml`` (ROS) in ``folder``, the JSON and OpenCV files with ``identity``,
-    the scenario the run was made in (:func:`twin.run_cameras.camera_identity`).
+    the scenario the run was made in (:func:`twin.run.run_cameras.camera_identity`).
 
     A Tsai camera's JSON file also holds its covariance in W (``covariance``: see
     :mod:`calib.camera_covariance`), propagated from its visit's data as the log holds
-    them (:func:`twin.logged_points.calibration_covariances`): what ``twin check`` weighs
+    them (:func:`twin.run.logged_points.calibration_covariances`): what ``twin check`` weighs
     the calibration's own error by.
     """
     from twin.campaign.records import CALIBRATION
-    from twin.logged_points import calibration_covariances
+    from twin.run.logged_points import calibration_covariances
 
     messages = list(messages)
     covariances = calibration_covariances(messages)

@@ -31,7 +31,7 @@ from calib.io.camera_files import camera_from_dict, camera_to_dict, save_camera
 from calib.pose_change import pose_change
 from calib.rotation import rotation_angle_between
 from twin.campaign.check import CameraCheck, CheckOutcome
-from twin.run_cameras import CalibratedCamera
+from twin.run.run_cameras import CalibratedCamera
 
 CAMERA_SUFFIXES = (".json", ".yaml", ".camera_info.yaml")
 """The files of a re-posed camera, as ``twin run`` writes each calibration's."""
@@ -125,7 +125,7 @@ def check_results(
     """``check.json``'s content; writes each moved camera's files into ``cameras_folder``
     (``NAME_check.json``, ``.yaml``, ``.camera_info.yaml``; the JSON file with the
     re-posed camera's covariance; the JSON and OpenCV files with ``identity``, the
-    scenario checked in: :func:`twin.run_cameras.camera_identity`)."""
+    scenario checked in: :func:`twin.run.run_cameras.camera_identity`)."""
     cameras: dict[str, Any] = {}
     for name, check in outcome.checks.items():
         files: list[str] = []

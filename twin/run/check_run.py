@@ -1,9 +1,9 @@
 """Check a run's calibrated cameras on a rig, log every reading, and write what the check
 gives: the part of ``twin check`` that does not depend on the backend (the twin's
-:func:`twin.runner.check_scenario`, real devices' :func:`twin.hardware_run.check_on_rig`).
+:func:`twin.run.runner.check_scenario`, real devices' :func:`twin.run.hardware_run.check_on_rig`).
 
 - ``OUT/log.mcap``: every reading and the campaign's records, as they arrive;
-- ``OUT/check.json`` (:mod:`twin.check_results`) and ``OUT/cameras/`` (the moved
+- ``OUT/check.json`` (:mod:`twin.run.check_results`) and ``OUT/cameras/`` (the moved
   cameras, re-posed).
 """
 
@@ -25,12 +25,12 @@ from twin.campaign.check import (
 from twin.campaign.check.consistency import check_false_alarm_rate
 from twin.campaign.log_results import META
 from twin.campaign.strategy import Strategy
-from twin.check_results import check_results
 from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder
-from twin.run_cameras import camera_identity, latest_cameras
+from twin.run.check_results import check_results
+from twin.run.run_cameras import camera_identity, latest_cameras
 from twin.scenario import Scenario
 from twin.truth import TRUTH_CAMERA
 
@@ -90,7 +90,7 @@ def run_check(
         ``check.json``'s content.
 
     Raises:
-        twin.run_cameras.CamerasFolderError: the cameras folder cannot be checked.
+        twin.run.run_cameras.CamerasFolderError: the cameras folder cannot be checked.
         ValueError: bad stops, false-alarm rate or least pixel sigma.
         twin.outputs.OutputError: ``out_dir`` cannot be used. Nothing is written for any
             of these.
