@@ -3,8 +3,8 @@
 A perspective camera cannot tell a scene from a scaled copy of it. A file in millimetres
 read as metres calibrates without any error: the pixels, the residuals and the focal
 length come out the same, and the camera and every length 1000 times too large (the
-README's example, in millimetres, puts the camera 5 km from its points with a 3D error of
-3.5 m). Only absolute magnitudes can tell, so a finished calibration is checked against
+example of docs/calibration.md, in millimetres, puts the camera 5 km from its points with a
+3D error of 3.5 m). Only absolute magnitudes can tell, so a finished calibration is checked against
 these bounds:
 
 * Range: the median distance from the optical centre to the points must lie within

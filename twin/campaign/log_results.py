@@ -176,7 +176,7 @@ def results_from_log(messages: Iterable[Any], pixel_size_mm: float = 0.015) -> d
         pixel_size_mm: the sensor's pixel pitch, for kappa1 in 1/mm^2.
 
     Returns:
-        The content of ``results.json`` (see the README); a log cut short gives the results
+        The content of ``results.json`` (see docs/reports.md); a log cut short gives the results
         of what it holds, with ``complete`` False.
     """
     t = _by_topic(messages)

@@ -58,7 +58,7 @@ BATCH_OMITS = (
     "adjustment ties a camera's visits together but no loop through a control point",
 )
 """What the batch fidelity leaves out; the geometric fidelity keeps it (``montecarlo.json``
-and the README say so too)."""
+and docs/montecarlo.md, under Fidelities, say so too)."""
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ class FitParameter:
             ``cameras.cam2.led_centroid_px``: see :func:`twin.scenario.overrides.with_values`).
         unit: the unit shown, and ``scale`` from the key's SI unit to it (1e3: m -> mm).
         upper: the largest value the fit may take, in ``unit``.
-        plausible: (low, high) what the physics allows, in ``unit`` (see the README).
+        plausible: (low, high) what the physics allows, in ``unit`` (see docs/as-built.md).
         known_as: scenario keys, dotted from the top (``campaign.child_creep_m``), that
             tell the campaign the same value: they follow the fitted one.
     """
@@ -274,7 +274,7 @@ PAPER_HALL_SOURCES: tuple[FitParameter, ...] = (
     FitParameter("noise.child_creep_m", "mm", 1e3, 10.0, (0.0, 2.0), ("campaign.child_creep_m",)),
 )
 """The sources fitted for ``scenarios/paper_hall_as_built.toml`` and what is plausible for
-each (the README gives the argument): a 2007 camera's LED centroid beyond the twin's
+each (docs/as-built.md gives the argument): a 2007 camera's LED centroid beyond the twin's
 rendering, 0.1-1 px, for cameras 1 and 3 (the noise section's) and camera 2's own (the
 paper's camera 2 shows 14-31 % more pixel error than camera 1 at both visits); a
 hand-surveyed marker assembly, 0.2-3 mm per coordinate; a standing child's prisms moving
