@@ -23,6 +23,7 @@ writes the cameras file ``twin site`` reads.
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,8 @@ from shapely.geometry.base import BaseGeometry
 
 from twin.planning.floor_map import FloorMap
 from twin.planning.site import FORMATION_CLEARANCE
+
+_log = logging.getLogger(__name__)
 
 HEIGHT = 3.0
 """The cameras' height above the floor, m (a ceiling camera)."""
@@ -244,9 +247,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     cameras = place_cameras(load_map(args.map), seed=args.seed)
     write_cameras(cameras, args.out, f"{len(cameras)} cameras on {args.map}, seed {args.seed}")
-    print(f"wrote {len(cameras)} cameras to {args.out}")
+    _log.info("wrote %d cameras to %s", len(cameras), args.out)
     return 0
 
 
 if __name__ == "__main__":
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
     raise SystemExit(main())

@@ -3,14 +3,17 @@ floor, at its height, looking down by its tilt along the corridor."""
 
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 import pytest
+import yaml
 from shapely.geometry import Point, box
 
-from twin.planning.camera_layout import LEAST_SPACING, medial_axis, place_cameras
+from twin.planning.camera_layout import LEAST_SPACING, main, medial_axis, place_cameras
 from twin.planning.floor_shapes import corridor_turn, floor_map
+from twin.planning.sample_floor import write_office_floor
 
 
 @pytest.fixture(scope="module")
@@ -86,3 +89,14 @@ def test_a_camera_on_a_stub_of_the_axis_looks_down_the_floor_not_at_the_wall():
     long = box(-10.0, -0.8, 10.0, 0.8)
     along = _direction(stub, np.array([-OPEN_VIEW, 0.0]), long)
     np.testing.assert_allclose(along, [1.0, 0.0], atol=1e-9)
+
+
+def test_the_command_writes_the_cameras_and_logs_them_without_printing(tmp_path, caplog, capsys):
+    grid, _ = write_office_floor(tmp_path, 20.0, 20.0, cameras=2)
+    out = tmp_path / "placed.yaml"
+    with caplog.at_level(logging.INFO, logger="twin.planning.camera_layout"):
+        assert main([str(grid), "--out", str(out), "--seed", "1"]) == 0
+    cameras = yaml.safe_load(out.read_text())
+    assert len(cameras) >= 1
+    assert caplog.messages == [f"wrote {len(cameras)} cameras to {out}"]
+    assert capsys.readouterr().out == ""
