@@ -6,9 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from twin.scenario.limits import MAX_SEED
+
+Number = TypeVar("Number", int, float)
 
 SEED_MAX = MAX_SEED
 """The largest seed accepted: the scenario's own limit (:data:`twin.scenario.limits.MAX_SEED`)."""
@@ -39,11 +41,40 @@ def positive_int(text: str) -> int:
 
 def int_from_1_to(most: int, what: str) -> Callable[[str], int]:
     """An argument type: a whole number from 1 to ``most`` (``what`` says why the top)."""
+    return number_in(int, 1, most, why=what)
 
-    def convert(text: str) -> int:
-        value = positive_int(text)
-        if value > most:
-            raise argparse.ArgumentTypeError(f"expected 1 to {most} ({what}), got {value}")
+
+def _show(bound: float) -> str:
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
+
+
+def number_in(
+    kind: type[Number],
+    low: Number,
+    high: Number | None = None,
+    *,
+    exclusive: bool = False,
+    unit: str = "",
+    why: str = "",
+) -> Callable[[str], Number]:
+    """An argument type: a number of ``kind`` (``int``, or ``float`` and finite) from ``low``
+    to ``high`` (no top when None), both ends excluded when ``exclusive``. A value outside
+    is refused with a message that gives the range, in ``unit``, and ``why`` it is so."""
+    if high is None:
+        expected = f"{'above' if exclusive else 'at least'} {_show(low)}"
+    elif exclusive:
+        expected = f"a number between {_show(low)} and {_show(high)}"
+    else:
+        expected = f"{_show(low)} to {_show(high)}"
+    expected += f" {unit}" if unit else ""
+    expected += f" ({why})" if why else ""
+
+    def convert(text: str) -> Number:
+        value = _convert(text, int, "a whole number") if kind is int else finite_float(text)
+        below = value <= low if exclusive else value < low
+        above = high is not None and (value >= high if exclusive else value > high)
+        if below or above:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text}")
         return value
 
     return convert

@@ -35,6 +35,7 @@ from calib.io import load_camera, read_points_csv, save_camera
 from calib.io.camera_files import camera_format
 from calib.io.points_csv import PIXEL_ORIGINS, UNIT_SCALE, pixels_to_opencv
 from calib.paper_units import kappa1_px2mm
+from twin.cli import arguments
 from twin.cli.calibrate_notes import DEFAULT_UNITS, cli_notes, mirror_note, mirrored_message
 from twin.outputs import OutputError, OutputFiles, check_file_target
 
@@ -45,33 +46,13 @@ MIN_PITCH_MM = 1e-4
 MAX_PITCH_MM = 1.0
 
 
-def _image_side(text: str) -> int:
-    """argparse type of --image-size: a whole number of pixels, 1 to MAX_IMAGE_SIDE_PX."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a whole number of pixels, got {text!r}"
-        ) from None
-    if not 0 < value <= MAX_IMAGE_SIDE_PX:
-        raise argparse.ArgumentTypeError(
-            f"expected a number of pixels from 1 to {MAX_IMAGE_SIDE_PX}, got {value}"
-        )
-    return value
+_image_side = arguments.number_in(int, 1, MAX_IMAGE_SIDE_PX, unit="pixels")
+"""argparse type of --image-size: a whole number of pixels, 1 to MAX_IMAGE_SIDE_PX."""
 
-
-def _pixel_pitch(text: str) -> float:
-    """argparse type of --pixel-size: a pixel pitch in mm, MIN_PITCH_MM to MAX_PITCH_MM."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not MIN_PITCH_MM <= value <= MAX_PITCH_MM:  # also rejects NaN
-        raise argparse.ArgumentTypeError(
-            f"expected a pixel pitch in millimetres from {MIN_PITCH_MM:g} to {MAX_PITCH_MM:g} "
-            f"(a 5 um pitch is 0.005), got {text!r}"
-        )
-    return value
+_pixel_pitch = arguments.number_in(
+    float, MIN_PITCH_MM, MAX_PITCH_MM, unit="mm", why="a pixel pitch: a 5 um pitch is 0.005"
+)
+"""argparse type of --pixel-size: a pixel pitch in mm, MIN_PITCH_MM to MAX_PITCH_MM."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -105,22 +105,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _stops(text: str) -> int:
-    """A number of stops from :data:`MIN_STOPS` to :data:`MAX_STOPS`."""
-    value = arguments.positive_int(text)
-    if not MIN_STOPS <= value <= MAX_STOPS:
-        raise argparse.ArgumentTypeError(
-            f"expected {MIN_STOPS} to {MAX_STOPS} (one stop's LEDs stand on one line), got {value}"
-        )
-    return value
+_stops = arguments.number_in(int, MIN_STOPS, MAX_STOPS, why="one stop's LEDs stand on one line")
+"""A number of stops from :data:`MIN_STOPS` to :data:`MAX_STOPS`."""
 
-
-def _probability(text: str) -> float:
-    """A probability strictly between 0 and 1."""
-    value = arguments.finite_float(text)
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number between 0 and 1, got {text}")
-    return value
+_probability = arguments.number_in(float, 0.0, 1.0, exclusive=True)
+"""A probability strictly between 0 and 1."""
 
 
 def run(args: argparse.Namespace) -> int:

@@ -136,15 +136,8 @@ MAX_REPAIRS = 100
 """Most repairs ``--repairs`` allows."""
 
 
-def repair_count(text: str) -> int:
-    """``--repairs``: a whole number from 0 to :data:`MAX_REPAIRS`."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if not 0 <= value <= MAX_REPAIRS:
-        raise argparse.ArgumentTypeError(f"expected 0 to {MAX_REPAIRS}, got {text}")
-    return value
+repair_count = arguments.number_in(int, 0, MAX_REPAIRS)
+"""``--repairs``: a whole number from 0 to :data:`MAX_REPAIRS`."""
 
 
 MAX_RESOLUTION = 1.0
@@ -153,22 +146,11 @@ metre wide). The finest is the smallest obstacle a scenario holds
 (:data:`twin.scenario.limits.SMALLEST_SIZE`); a grid of nanometres would not fit in memory."""
 
 
-def grid_resolution(text: str) -> float:
-    """``--resolution``: a number of metres from SMALLEST_SIZE to :data:`MAX_RESOLUTION`."""
-    value = arguments.finite_float(text)
-    if not SMALLEST_SIZE <= value <= MAX_RESOLUTION:
-        raise argparse.ArgumentTypeError(
-            f"expected {SMALLEST_SIZE:g} to {MAX_RESOLUTION:g} m, got {text}"
-        )
-    return value
+grid_resolution = arguments.number_in(float, SMALLEST_SIZE, MAX_RESOLUTION, unit="m")
+"""``--resolution``: a number of metres from SMALLEST_SIZE to :data:`MAX_RESOLUTION`."""
 
-
-def speckle_area(text: str) -> float:
-    """``--speckle``: a finite number of m^2, at least 0."""
-    value = arguments.finite_float(text)
-    if value < 0.0:
-        raise argparse.ArgumentTypeError(f"expected an area of at least 0 m^2, got {text}")
-    return value
+speckle_area = arguments.number_in(float, 0.0, unit="m^2", why="an area; 0 keeps every cell")
+"""``--speckle``: a finite number of m^2, at least 0."""
 
 
 def visit_order(text: str) -> list[str]:

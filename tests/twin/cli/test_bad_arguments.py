@@ -82,7 +82,7 @@ def test_a_seed_out_of_range_is_refused(command, seed, tmp_path, capsys):
         ("--distance", "nan", "expected a finite number above 0"),
         ("--at", "inf", "expected a finite number"),
         ("--saturation", "0", "expected a finite number above 0"),
-        ("--leds", "0", "must be at least 1"),
+        ("--leds", "0", "expected 1 to 64 (the most a switching sequence codes), got 0"),
     ],
 )
 def test_detect_refuses_numbers_out_of_range(option, value, expected, tmp_path, capsys):

@@ -123,7 +123,7 @@ def test_bad_inputs(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["detect", "--leds", "0", str(img)])
     assert exit_.value.code == 2
-    assert "argument --leds: must be at least 1" in capsys.readouterr().err
+    assert "argument --leds: expected 1 to 64" in capsys.readouterr().err
 
 
 def test_detect_on_image_files_needs_no_opengl(tmp_path):
