@@ -116,17 +116,26 @@ def test_accuracy_stops_lower_the_true_camera_position_error(smoke):
     assert rms_accurate < 0.75 * rms_today, (rms_accurate, rms_today)
 
 
-def test_partial_points_reach_the_calibration(smoke):
-    from twin.campaign.log_results import results_from_log
-    from twin.campaign.records import POINT
-    from twin.montecarlo.prediction import predictions_from_log
+@pytest.fixture(scope="module")
+def paper_accuracy(smoke):
+    """The paper's strategy with the accuracy stops, seed 1, at the geometric fidelity: its
+    results and its log. Shared by the tests that read that run."""
     from twin.record.mcap_log import read_log
     from twin.run.runner import run_scenario
 
-    sc = _with(smoke, "accuracy")
     with tempfile.TemporaryDirectory() as tmp:
+        sc = _with(smoke, "accuracy", "paper")
         results = run_scenario(sc, tmp, fidelity="geometric", seed=1, report=False)
-        log = read_log(Path(tmp) / "log.mcap")
+        return results, read_log(Path(tmp) / "log.mcap")
+
+
+def test_partial_points_reach_the_calibration(smoke, paper_accuracy):
+    from twin.campaign.log_results import results_from_log
+    from twin.campaign.records import POINT
+    from twin.montecarlo.prediction import predictions_from_log
+
+    sc = _with(smoke, "accuracy")
+    results, log = paper_accuracy
     points = [m.data for m in log.messages if m.topic == POINT]
     counts = [len(p["leds_world"]) for p in points]
     assert min(counts) < 4
@@ -185,7 +194,9 @@ def test_points_variance_with_stops_of_different_led_counts():
     np.testing.assert_allclose(got, np.trace(want[0]), rtol=1e-9)
 
 
-def test_the_planned_strategy_is_the_papers_with_stops_for_accuracy(smoke, tmp_path):
+def test_the_planned_strategy_is_the_papers_with_stops_for_accuracy(
+    smoke, paper_accuracy, tmp_path
+):
     from twin.campaign import DEFAULT_STRATEGY, strategy_named
     from twin.campaign.paper_strategy import PlannedStrategy
     from twin.run.runner import run_scenario
@@ -195,13 +206,10 @@ def test_the_planned_strategy_is_the_papers_with_stops_for_accuracy(smoke, tmp_p
     assert smoke.campaign.strategy == "planned"  # the scenario names none
     runs = [
         run_scenario(sc, tmp_path / name, fidelity="geometric", seed=1, report=False)
-        for name, sc in (
-            ("planned", smoke),
-            ("paper_accuracy", _with(smoke, "accuracy", "paper")),
-            ("paper", _with(smoke, "all_leds", "paper")),
-        )
+        for name, sc in (("planned", smoke), ("paper", _with(smoke, "all_leds", "paper")))
     ]
-    planned, paper_accuracy, paper = (r["calibrations"][0] for r in runs)
+    planned, paper = (r["calibrations"][0] for r in runs)
+    paper_accuracy = paper_accuracy[0]["calibrations"][0]
     assert planned["truth"] == paper_accuracy["truth"]
     assert planned["data_points_xy"] == paper_accuracy["data_points_xy"]
     assert planned["data_points_xy"] != paper["data_points_xy"]
