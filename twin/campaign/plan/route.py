@@ -65,8 +65,8 @@ class RoutePath:
         back past itself has two nearest points).
 
         The path goes on straight beyond its ends: a point nearest to that straight
-        continuation (within the window) projects to the end it continues, not to another
-        part of a path that comes back near its end.
+        continuation (within the window, measured along the continuation) projects to the
+        end it continues, not to another part of a path that comes back near its end.
 
         Where the path passes within ``tie`` m of the nearest distance at more than one arc
         length (a route that comes back along itself: out to a turn and back on the same
@@ -90,7 +90,10 @@ class RoutePath:
                 continue
             d = self.directions[end]
             beyond = sign * float((q - self.points[end]) @ d)
-            if beyond > 0.0:
+            # The continuation's own arc length is searched too: a point far beyond the
+            # route's end is not near a group at ``near`` (a route that ends pointing back at
+            # where the group stands, through a wall).
+            if beyond > 0.0 and lo <= s_end + sign * beyond <= hi:
                 found.append(
                     (s_end, float(np.linalg.norm(self.points[end] + sign * beyond * d - q)))
                 )

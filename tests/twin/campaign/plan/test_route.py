@@ -45,3 +45,16 @@ def test_on_a_route_back_along_itself_the_pass_nearest_in_arc_length_is_taken():
     assert np.isclose(path.project([3.78, -0.02], near=3.0), 3.78)
     assert np.isclose(path.project([3.78, 0.02]), 3.78)
     assert np.isclose(path.project([2.0, 0.01], near=7.9), 6.0)
+
+
+def test_a_point_on_the_continuation_far_past_the_end_is_not_near_a_group_at_the_start():
+    # The route turns back and its last leg (-6, -3) -> (-2, -1), 21.5 m on, points at the
+    # route's first metres: (2, 1) is on its straight continuation, 4.5 m past the end, and
+    # 1 m beside the first segment. A group 2 m along the route (window 20 m) is at the
+    # first segment; the end's continuation lies 26 m along, outside the window. Taking it
+    # sent a child standing there back along the whole route, through a doorway's wall.
+    path = RoutePath([[0.0, 0.0], [4.0, 0.0], [4.0, -3.0], [-6.0, -3.0], [-2.0, -1.0]])
+    assert np.isclose(path.project([2.0, 1.0], near=2.0), 2.0)
+    # Searching near the end, the same point is past the end.
+    assert np.isclose(path.project([2.0, 1.0], near=20.0), path.length)
+    assert np.isclose(path.project([2.0, 1.0]), path.length)
