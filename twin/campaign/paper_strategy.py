@@ -12,7 +12,9 @@ parent, and a child's data at stops spread over each camera's view.
   from (:mod:`twin.campaign.recovery`), a leg to half way first;
 - data: the child nearer the camera's view takes it at the first stops of
   :func:`twin.campaign.plan.view_stops.view_stops`, in a nearest-neighbour tour, the
-  later ones spare; at each stop it turns where its own assembly would hide a prism.
+  later ones spare (the other child where the nearer has no way to the first stops past
+  it and it has one: it stands in a doorway the stops lie beyond); at each stop it turns
+  where its own assembly would hide a prism.
 """
 
 from __future__ import annotations
@@ -25,11 +27,13 @@ from numpy.typing import NDArray
 
 from calib.camera import TsaiCamera
 from twin.campaign.plan.accurate_stops import choose_stops, partial_view_stops
+from twin.campaign.plan.clearance import CHILD_BODY, PARENT_BODY
 from twin.campaign.plan.formation import corner_formation, formation, sight_margins
 from twin.campaign.plan.legs import leg_goals
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
 from twin.campaign.plan.view_stops import tour, view_stops
+from twin.campaign.plan.ways import ROBOT_MARGIN, way_to
 from twin.campaign.strategy import (
     CampaignView,
     Leg,
@@ -328,6 +332,20 @@ class PaperStrategy(Strategy):
         cam = sc.camera(camera).tsai()
         child = _nearest_child(view, cam.position[:2], floor_view(cam, sc.space.floor_z, 40.0, 12))
         anchor = next(c for c in view.children if c != child)
+        plan = self._stops_for(view, child, anchor, cam, points)
+        # The other child standing in the way (a doorway the stops lie beyond): it takes
+        # the data where it has a way to them.
+        if _no_way(view, child, anchor, plan) and not _no_way(view, anchor, child, plan):
+            swapped = self._stops_for(view, anchor, child, cam, points)
+            if not _no_way(view, anchor, child, swapped):
+                return swapped
+        return plan
+
+    def _stops_for(
+        self, view: CampaignView, child: str, anchor: str, cam: TsaiCamera, points: int
+    ) -> StopPlan:
+        """The stops of ``child`` for ``cam``'s data, ``anchor`` standing where it is."""
+        sc = view.scenario
         if self.accuracy_stops or sc.campaign.data_stops == "accuracy":
             return self._accurate_stops(view, child, anchor, cam, points)
         parent = view.parent
@@ -410,6 +428,22 @@ def _paper_visits(view: CampaignView) -> list[Visit]:
         station = np.asarray(v.station, dtype=float)
         out.append(Visit(v.camera, seen[v.camera], station, math.radians(v.yaw_deg)))
     return out
+
+
+WAY_STOPS = 3
+"""How many of a camera's first planned stops a child with no way to is blocked."""
+
+
+def _no_way(view: CampaignView, child: str, other: str, plan: StopPlan) -> bool:
+    """Whether ``child`` has no way (:func:`twin.campaign.plan.ways.way_to`) clear of the
+    parent and ``other`` standing to any of ``plan``'s first :data:`WAY_STOPS` stops (False
+    for a plan with none)."""
+    stops = plan.upcoming[:WAY_STOPS]
+    robots = np.array([view.parent.translation[:2], view.robot_pose(other)[:2]])
+    keep = np.array([PARENT_BODY + CHILD_BODY + ROBOT_MARGIN, 2 * CHILD_BODY + ROBOT_MARGIN])
+    here = view.robot_pose(child)[:2]
+    space = view.scenario.space
+    return bool(stops) and all(way_to(space, here, s.xy, robots, keep) is None for s in stops)
 
 
 def _nearest_child(

@@ -245,6 +245,11 @@ class StopPlan:
         """Stops left to visit (spares not counted)."""
         return len(self._planned)
 
+    @property
+    def upcoming(self) -> tuple[Stop, ...]:
+        """The stops left to visit, in order (spares not counted)."""
+        return tuple(self._planned)
+
     def next(self) -> PlannedStop | None:
         """The next stop, or None when none is left."""
         if not self._planned:
