@@ -7,7 +7,8 @@ parent, and a child's data at stops spread over each camera's view.
 - visits: ``calibration.visits``, in order;
 - legs: along the route in equal steps of at most ``campaign.formation.step``; the
   children stand ahead of the parent's next station (:func:`twin.campaign.plan.formation.
-  formation`), the one farther ahead moving first; where there is no room for them, a
+  formation`), the one farther ahead moving first (a child beside the way out of a dead
+  end is on the way out, not the way in); where there is no room for them, a
   leg half as long, down to 30 % of a step; after a leg that failed and was backed off
   from (:mod:`twin.campaign.recovery`), a leg to half way first;
 - data: the child nearer the camera's view takes it at the first stops of
@@ -297,7 +298,7 @@ class PaperStrategy(Strategy):
         if found is None:
             return None
         kept, stops = found
-        s_children = {c: path.project(view.robot_pose(c)[:2], near=self._arc) for c in order}
+        s_children = {c: self._child_arc(view.robot_pose(c)[:2], direction) for c in order}
         moves = tuple(
             self._move(child, s_children[child], path.project(stop.xy, near=self._arc), stop)
             for child, stop in zip(order, stops, strict=True)
@@ -312,9 +313,28 @@ class PaperStrategy(Strategy):
     def _children_in_order(self, view: CampaignView, direction: float) -> list[str]:
         """The first two children, the one farthest ahead along the route first (it moves
         first)."""
-        path, near = self.path, self._arc
-        s = {c: path.project(view.robot_pose(c)[:2], near=near) for c in view.children[:2]}
+        s = {c: self._child_arc(view.robot_pose(c)[:2], direction) for c in view.children[:2]}
         return sorted(s, key=lambda c: direction * s[c], reverse=True)
+
+    def _child_arc(self, xy: NDArray[np.float64], direction: float) -> float:
+        """A child's arc length on the route, m, from where it stands (``xy``, (2,) m): the
+        nearest point of the route near the group's; where that is behind the group
+        (``direction``: +1 along the route, -1 back) but the route ahead passes within
+        :data:`AHEAD_TOLERANCE` as near, the point ahead. A child beside the way out of a
+        dead end stands nearest the way in: placed there, it drove in past the parent."""
+        path, s_now = self.path, self._arc
+        s = path.project(xy, near=s_now)
+        if direction * (s - s_now) >= 0:
+            return s
+        half = 0.5 * AHEAD_WINDOW
+        ahead = path.project(xy, near=s_now + direction * half, window=half)
+        if (
+            direction * (ahead - s_now) > 0
+            and np.linalg.norm(path.at(ahead) - xy)
+            <= np.linalg.norm(path.at(s) - xy) + AHEAD_TOLERANCE
+        ):
+            return ahead
+        return s
 
     def _move(self, robot: str, s_from: float, s_to: float, stop: Stop) -> Move:
         """A drive along the route from arc length ``s_from`` to ``s_to``, then to ``stop``."""
@@ -414,6 +434,13 @@ class PaperStrategy(Strategy):
             partial=True,
         )
 
+
+AHEAD_TOLERANCE = 1.0
+"""A child nearest the route behind the group is placed on the route ahead where that
+passes at most this much farther from it, m (:meth:`PaperStrategy._child_arc`)."""
+
+AHEAD_WINDOW = 10.0
+"""How far ahead of the group along the route a child's place is searched, m."""
 
 ROUTE_END = 0.5
 """A return to a place this close to the route's end (m) goes to the end of the route."""
