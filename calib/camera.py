@@ -29,7 +29,7 @@ from calib.distortion import distort, undistort
 from calib.rotation import euler2matrix, look_at_world2cam, matrix2euler
 
 
-def _leading(value: float | ArrayLike) -> NDArray[np.float64]:
+def per_point(value: float | ArrayLike) -> NDArray[np.float64]:
     """A parameter of shape (...) -> (..., 1), to broadcast against N points."""
     return np.asarray(value, dtype=float)[..., None]
 
@@ -58,10 +58,10 @@ def project_tsai(
     pc = points_world @ np.swapaxes(world2cam_r, -1, -2) + world2cam_t[..., None, :]
     z = pc[..., 2:3]
     with np.errstate(divide="ignore", invalid="ignore"):
-        xy_u = np.where(z > 0, _leading(f)[..., None] * pc[..., :2] / z, np.nan)
-    xy_d = distort(xy_u, _leading(kappa1))
-    u = _leading(sx) * xy_d[..., 0] + _leading(cx)
-    return np.stack([u, xy_d[..., 1] + _leading(cy)], axis=-1)
+        xy_u = np.where(z > 0, per_point(f)[..., None] * pc[..., :2] / z, np.nan)
+    xy_d = distort(xy_u, per_point(kappa1))
+    u = per_point(sx) * xy_d[..., 0] + per_point(cx)
+    return np.stack([u, xy_d[..., 1] + per_point(cy)], axis=-1)
 
 
 def pixels_to_normalized(
@@ -74,9 +74,9 @@ def pixels_to_normalized(
 ) -> NDArray[np.float64]:
     """(..., N, 2) distorted pixels -> (..., N, 2) undistorted normalised coordinates
     x_c/z_c, without input checks (parameters as :func:`project_tsai`)."""
-    xd = (pixels[..., 0] - _leading(cx)) / _leading(sx)
-    xy_d = np.stack([xd, pixels[..., 1] - _leading(cy)], axis=-1)
-    return undistort(xy_d, _leading(kappa1)) / _leading(f)[..., None]
+    xd = (pixels[..., 0] - per_point(cx)) / per_point(sx)
+    xy_d = np.stack([xd, pixels[..., 1] - per_point(cy)], axis=-1)
+    return undistort(xy_d, per_point(kappa1)) / per_point(f)[..., None]
 
 
 def lines_of_sight(

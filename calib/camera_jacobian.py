@@ -12,12 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.camera import per_point
 from calib.distortion import distortion_scale
-
-
-def _leading(value: float | NDArray[np.float64]) -> NDArray[np.float64]:
-    """A parameter of shape (...) -> (..., 1), to broadcast against N points."""
-    return np.asarray(value, dtype=float)[..., None]
 
 
 def project_tsai_jacobian(
@@ -44,7 +40,7 @@ def project_tsai_jacobian(
         pixels (..., N, 2) and the Jacobian (..., N, 2, 11) in the order f, cx, cy, sx,
         kappa1, rot(3), C(3). Points behind their camera give NaN.
     """
-    fb, sxb, kb = _leading(f), _leading(sx), _leading(kappa1)
+    fb, sxb, kb = per_point(f), per_point(sx), per_point(kappa1)
     v = points_world - camera_position[..., None, :]
     pc = v @ np.swapaxes(world2cam_r, -1, -2)
     z = pc[..., 2]
@@ -98,5 +94,5 @@ def project_tsai_jacobian(
     sk[..., 1, 0], sk[..., 1, 2] = v[..., 2], -v[..., 0]
     sk[..., 2, 0], sk[..., 2, 1] = -v[..., 1], v[..., 0]
     jac[..., 5:8] = times(duv_dc @ sk, drot)
-    uv = np.stack([sxb * xd + _leading(cx), yd + _leading(cy)], axis=-1)
+    uv = np.stack([sxb * xd + per_point(cx), yd + per_point(cy)], axis=-1)
     return uv, jac
