@@ -23,6 +23,7 @@ import itertools
 import numpy as np
 import shapely
 from numpy.typing import ArrayLike, NDArray
+from shapely.ops import nearest_points
 
 from twin.campaign.plan.clearance import path_clear
 from twin.planning.route import NoPathError, RouteGraph
@@ -161,7 +162,7 @@ def way_to(
             space, corner, b, robots, keep, clearance
         ):
             return [corner]
-    return _way_round(space, a, b, robots, keep, leave)
+    return _way_round(space, a, b, robots, keep, leave, clearance)
 
 
 def _way_round(
@@ -170,20 +171,26 @@ def _way_round(
     b: NDArray[np.float64],
     robots: ArrayLike,
     keep: ArrayLike,
+    leave: float,
     clearance: float,
 ) -> list[NDArray[np.float64]] | None:
     """The corners of the shortest way from ``a`` to ``b`` ((2,) m) on the floor near them
     (:data:`WAY_REACH`) kept ``clearance`` from the walls and obstacles (their footprints
     grown, rectangles as :func:`map_clearance` measures) and ``keep[k]`` from each robot
     (no more than ``a`` stands from it), each leg checked with :func:`leg_clear`; None
-    where there is none (a robot or the map closes the way)."""
+    where there is none (a robot or the map closes the way).
+
+    A start nearer the map than ``clearance`` (``leave`` < ``clearance``) first steps
+    straight off to the nearest point of that floor, keeping ``leave``: the rest of the way
+    keeps ``clearance``, as a way that leaves a wall it stopped beside does.
+    """
     centres = np.asarray(robots, dtype=float).reshape(-1, 2)
     away = np.linalg.norm(centres - a, axis=1)
     room = np.minimum(np.asarray(keep, dtype=float), away)
     lo = np.minimum(a, b) - WAY_REACH
     hi = np.maximum(a, b) + WAY_REACH
     (x0, x1), (y0, y1) = space.x_range, space.y_range
-    grow = min(clearance + WAY_MARGIN, map_clearance(space, a))  # ``a`` on the floor
+    grow = clearance + WAY_MARGIN
     window = shapely.box(
         max(lo[0], x0 + grow), max(lo[1], y0 + grow), min(hi[0], x1 - grow), min(hi[1], y1 - grow)
     )
@@ -195,13 +202,20 @@ def _way_round(
         if d > 0.0
     ]
     floor = window.difference(shapely.union_all(blocked)) if blocked else window
+    legs = [a]
+    if leave < clearance and not floor.covers(shapely.Point(a)):
+        if floor.is_empty:
+            return None
+        _, nearest = nearest_points(shapely.Point(a), floor)
+        legs.append(np.array([nearest.x, nearest.y]))
+        if not leg_clear(space, a, legs[-1], centres, room, leave):
+            return None
     try:
-        path = RouteGraph(floor).path(a, b)
+        path = RouteGraph(floor).path(legs[-1], b)
     except NoPathError:
         return None
-    corners = [np.asarray(c, dtype=float) for c in path[1:-1]]
-    legs = [a, *corners, b]
-    for start, end in itertools.pairwise(legs):
-        if not leg_clear(space, start, end, centres, room, clearance):
+    legs += [np.asarray(c, dtype=float) for c in path[1:-1]] + [b]
+    for i, (start, end) in enumerate(itertools.pairwise(legs)):
+        if not leg_clear(space, start, end, centres, room, leave if i == 0 else clearance):
             return None
-    return corners
+    return legs[1:-1]
