@@ -1,4 +1,5 @@
-"""Comparing the camera position errors of two Monte-Carlo tables (e.g. two fidelities).
+"""Comparing the camera position errors of two Monte-Carlo tables (two fidelities, or one
+fidelity before and after a change of the code).
 
 The errors of one trial's calibrations are correlated (they share the parent's track), so
 the resampling unit is the trial: the bootstrap draws whole trials with replacement, and
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from twin.montecarlo.sources import ALL
 
@@ -160,3 +162,99 @@ def batch_disagreement(
     outside = float(np.mean((ratios > factor) | (ratios < 1.0 / factor)))
     lo, hi = np.quantile(ratios, [0.025, 0.975])
     return outside, (float(lo), float(hi))
+
+
+def errors_by_visit(
+    rows: Sequence[dict[str, Any]], column: str = "position_error_mm", config: str = ALL
+) -> dict[tuple[str, int], dict[int, float]]:
+    """Each planned visit's errors (``column``, the table's unit) by trial seed, of the
+    trials that calibrated it: ``{(camera, visit): {seed: error}}``, visits in table order."""
+    out: dict[tuple[str, int], dict[int, float]] = {}
+    for r in rows:
+        if r["config"] != config:
+            continue
+        errors = out.setdefault((str(r["camera"]), int(r["visit"])), {})
+        if r["calibrated"] and np.isfinite(r[column]):
+            errors[int(r["seed"])] = float(r[column])
+    return out
+
+
+@dataclass(frozen=True)
+class VisitRatio:
+    """The RMS errors of one visit before and after a change, and their ratio.
+
+    Attributes:
+        rms_before, rms_after: RMS of the errors (their unit). ratio: after / before.
+        low, high: the bootstrap interval of the ratio (``level``, BCa).
+        level: the interval's coverage. paired: whether the trials were paired by seed
+            (the seeds shared by both tables), or resampled apart.
+        trials_before, trials_after: the errors each RMS is of.
+    """
+
+    rms_before: float
+    rms_after: float
+    ratio: float
+    low: float
+    high: float
+    level: float
+    paired: bool
+    trials_before: int
+    trials_after: int
+
+    @property
+    def agrees(self) -> bool:
+        """Whether the interval holds 1: nothing tells the two distributions apart."""
+        return self.low <= 1.0 <= self.high
+
+
+def _rms_of_ratio(before: np.ndarray, after: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.sqrt(np.mean(after**2, axis=axis) / np.mean(before**2, axis=axis))
+
+
+def visit_rms_ratio(
+    before: dict[int, float],
+    after: dict[int, float],
+    resamples: int = 9999,
+    level: float = 0.95,
+    seed: int = 0,
+) -> VisitRatio:
+    """The ratio of a visit's RMS errors after and before a change, with a bootstrap
+    interval (:func:`scipy.stats.bootstrap`, BCa).
+
+    Args:
+        before, after: errors by trial seed (:func:`errors_by_visit`). Where at least two
+            seeds are shared, only those count and the bootstrap draws pairs of them (the
+            same seed sees the same noise, so the interval is far narrower than apart);
+            otherwise each table is resampled on its own.
+        resamples: bootstrap resamples. level: the interval's coverage. seed: its RNG.
+
+    Raises:
+        ValueError: if a table has fewer than two errors.
+    """
+    shared = sorted(before.keys() & after.keys())
+    paired = len(shared) >= 2
+    if paired:
+        b = np.array([before[s] for s in shared])
+        a = np.array([after[s] for s in shared])
+    else:
+        b = np.array(list(before.values()), dtype=float)
+        a = np.array(list(after.values()), dtype=float)
+    if len(b) < 2 or len(a) < 2:
+        raise ValueError(f"need at least two errors before and after, got {len(b)} and {len(a)}")
+    ratio = float(_rms_of_ratio(b, a))
+    if np.all(a == b):  # no spread to resample: the change changed nothing here
+        low = high = ratio
+    else:
+        res = stats.bootstrap(
+            (b, a),
+            _rms_of_ratio,
+            n_resamples=resamples,
+            paired=paired,
+            vectorized=True,
+            confidence_level=level,
+            method="BCa",
+            rng=np.random.default_rng(seed),
+        )
+        low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
+    rms_b, rms_a = float(np.sqrt(np.mean(b**2))), float(np.sqrt(np.mean(a**2)))
+    return VisitRatio(rms_b, rms_a, ratio, low, high, level, paired, len(b), len(a))

@@ -7,6 +7,17 @@ checkout's), and which of the campaign's own moves and re-aims count as failures
 turning to show its prisms, the parent stepping aside, a prism re-aimed or searched for are
 events of the campaign, not faults. They must still happen as often as before: the stored
 failures of those kinds are the new run's events of those kinds.
+
+The stores guard against unintended change. A change meant to change numbers (see
+docs/changing-numbers.md) shows in its commit that the distributions agree: a Monte Carlo
+of the hall before and after at each fidelity whose numbers changed (1000 trials at the
+batch fidelity, 200 at the geometric one), ``benchmarks/bench_distributions.py BEFORE
+AFTER --fidelity F``, whose table gives per visit the RMS camera error before and after,
+their ratio and its 95 % bootstrap interval (paired by trial seed), which must hold 1.
+It then regenerates the stores this processor can (``python -m
+tests.twin.campaign.regression.cases``: every case, as the main store), drops those it
+cannot (the other processors' stores, recorded with their processor in ``environment``),
+and puts the table in its commit body.
 """
 
 from __future__ import annotations

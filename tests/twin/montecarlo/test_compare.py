@@ -4,7 +4,14 @@ chance that a few seeds of one distribution fail a factor band."""
 import numpy as np
 import pytest
 
-from twin.montecarlo.compare import batch_disagreement, errors_by_trial, median_ratio, rms_ratio
+from twin.montecarlo.compare import (
+    batch_disagreement,
+    errors_by_trial,
+    errors_by_visit,
+    median_ratio,
+    rms_ratio,
+    visit_rms_ratio,
+)
 
 
 def _trials(n: int, scale: float, seed: int) -> list[np.ndarray]:
@@ -65,3 +72,70 @@ def test_bad_inputs_are_refused():
         median_ratio([np.ones(3)], _trials(5, 1.0, 0))
     with pytest.raises(ValueError, match="two batches of 4 need 8 trials"):
         batch_disagreement(_trials(5, 1.0, 0), 4, 1.5)
+
+
+def _by_seed(errors: np.ndarray, first_seed: int = 0) -> dict[int, float]:
+    return {first_seed + k: float(e) for k, e in enumerate(errors)}
+
+
+def test_visits_group_by_camera_and_visit_keyed_by_seed():
+    nan = float("nan")
+    rows = [
+        {"config": "all", "seed": 11, "camera": "cam1", "visit": 0, "calibrated": 1, "e": 1.0},
+        {"config": "all", "seed": 11, "camera": "cam2", "visit": 1, "calibrated": 1, "e": 2.0},
+        {"config": "all", "seed": 12, "camera": "cam1", "visit": 0, "calibrated": 0, "e": nan},
+        {"config": "all", "seed": 13, "camera": "cam1", "visit": 0, "calibrated": 1, "e": 3.0},
+        {"config": "angle", "seed": 13, "camera": "cam1", "visit": 0, "calibrated": 1, "e": 9.0},
+    ]
+    got = errors_by_visit(rows, column="e")
+    assert got == {("cam1", 0): {11: 1.0, 13: 3.0}, ("cam2", 1): {11: 2.0}}
+
+
+@pytest.mark.parametrize("paired", [True, False])
+def test_a_change_that_keeps_the_distribution_agrees(paired):
+    # The same distribution before and after (independent draws, so the interval has its
+    # full width): the true RMS ratio is 1.
+    rng = np.random.default_rng(3)
+    before, after = rng.rayleigh(10.0, (2, 1000))
+    got = visit_rms_ratio(_by_seed(before), _by_seed(after, 0 if paired else 5000), 2000)
+    assert got.paired is paired
+    assert got.agrees
+    # The interval's half width is about that of a ratio of two RMS of n Rayleigh errors
+    # (e^2 exponential: each RMS has a relative spread of 1 / (2 sqrt(n))).
+    half = 1.96 * np.sqrt(2.0) / (2.0 * np.sqrt(1000))
+    assert 0.7 * half < 0.5 * (got.high - got.low) < 1.4 * half
+
+
+def test_a_change_of_twenty_percent_is_told_apart():
+    rng = np.random.default_rng(4)
+    before, after = rng.rayleigh(10.0, (2, 1000))
+    got = visit_rms_ratio(_by_seed(before), _by_seed(1.2 * after), 2000)
+    assert not got.agrees
+    assert got.low < 1.2 < got.high
+    assert got.ratio == pytest.approx(got.rms_after / got.rms_before)
+
+
+def test_pairing_by_seed_narrows_the_interval_of_a_small_change():
+    # After = before scaled by 1.03 with 1 % of noise per trial: apart, 200 trials cannot
+    # tell 3 % from nothing; paired by seed they can.
+    rng = np.random.default_rng(5)
+    before = rng.rayleigh(10.0, 200)
+    after = 1.03 * before * (1.0 + 0.01 * rng.standard_normal(200))
+    paired = visit_rms_ratio(_by_seed(before), _by_seed(after), 2000)
+    apart = visit_rms_ratio(_by_seed(before), _by_seed(after, 1000), 2000)
+    assert paired.paired
+    assert not apart.paired
+    assert not paired.agrees
+    assert paired.low < 1.03 < paired.high
+    assert apart.agrees
+
+
+def test_unchanged_errors_agree_with_no_spread():
+    errors = _by_seed(np.arange(1.0, 6.0))
+    got = visit_rms_ratio(errors, dict(errors))
+    assert (got.ratio, got.low, got.high, got.agrees) == (1.0, 1.0, 1.0, True)
+
+
+def test_too_few_errors_are_refused_with_the_counts():
+    with pytest.raises(ValueError, match="at least two errors before and after, got 1 and 3"):
+        visit_rms_ratio({1: 1.0}, {2: 1.0, 3: 2.0, 4: 3.0})
