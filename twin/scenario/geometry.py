@@ -3,8 +3,9 @@ camera views on the floor, segment tests. Used to validate scenarios, to summari
 to plan the campaign.
 
 Obstacles are treated as their bounding boxes (stairs included), which is conservative
-for lines of sight. :func:`segment_blocked` (boxes with heights) and :func:`floor_view`
-(rays cast onto the floor) stay numpy: they are 3D, and shapely's geometry is 2D. So does
+for lines of sight. The 2D tests are shapely's: points in footprints, segments across them
+(:func:`segment_blocked` tests a box's height only for a segment that passes over or
+under it). :func:`floor_view` (rays cast onto the floor) stays numpy: it is 3D. So does
 :func:`inside_space`: the walls are an axis-aligned rectangle, and its four comparisons are
 quicker than shapely's test of a point in a polygon.
 """
@@ -117,8 +118,11 @@ footprints' corners are rounded by, far less than anything built."""
 @functools.lru_cache(maxsize=64)
 def _footprint_tree(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> shapely.STRtree:
     """A search tree over the footprints of ``obstacles`` grown by ``margin`` (m), in W,
-    for one ``thread`` (see :func:`_footprints`)."""
-    return shapely.STRtree([_footprint(ob, margin, ob.center) for ob in obstacles])
+    prepared, for one ``thread`` (see :func:`_footprints`)."""
+    feet = np.empty(len(obstacles), dtype=object)
+    feet[:] = [_footprint(ob, margin, ob.center) for ob in obstacles]
+    shapely.prepare(feet)
+    return shapely.STRtree(feet)
 
 
 def inside_obstacles(
@@ -201,19 +205,13 @@ def inside_space(space: Space, points_xy: ArrayLike, margin: float = 0.0) -> NDA
     )
 
 
-def _boxes(
-    space: Space, obstacles: tuple[Obstacle, ...], margin: float = 0.0
-) -> tuple[NDArray, ...]:
-    """The obstacles' boxes as arrays: (O, 2) centres, (O,) cos and sin of their yaws, and
-    (O, 3) lowest and highest corners in their own frames (origin at the footprint's centre,
-    axes along its sides, z unchanged), m; the sides and the top moved out by ``margin``, m."""
-    return _box_arrays(space.floor_z, obstacles or space.obstacles, margin)
-
-
 def _box_arrays(
     floor_z: float, obs: tuple[Obstacle, ...], margin: float = 0.0
 ) -> tuple[NDArray, ...]:
-    """:func:`_boxes` of ``obs`` standing on a floor at ``floor_z``, m."""
+    """The boxes of ``obs`` standing on a floor at ``floor_z`` (m) as arrays: (O, 2)
+    centres, (O,) cos and sin of their yaws, and (O, 3) lowest and highest corners in their
+    own frames (origin at the footprint's centre, axes along its sides, z unchanged), m; the
+    sides and the top moved out by ``margin``, m."""
     centre = np.array([ob.center for ob in obs], dtype=float).reshape(-1, 2)
     yaw = [ob.yaw for ob in obs]
     c = np.array([np.cos(y) for y in yaw])
@@ -225,15 +223,6 @@ def _box_arrays(
     return centre, c, s, lo, hi
 
 
-DENSE_PAIRS = 4096
-"""Up to this many (obstacle, segment) pairs :func:`segment_blocked` tests every segment
-against every box. Beyond, a segment that crosses the union of the boxes that stand
-higher than its ends (walls, most often), shrunk by :data:`NEAR_TOLERANCE`, is blocked
-(one test against one prepared polygon); the others are tested against the boxes whose
-footprints they cross (a query of a search tree), on a floor of thousands of boxes a few
-at most."""
-
-
 def segment_blocked(
     space: Space,
     starts: ArrayLike,
@@ -241,10 +230,14 @@ def segment_blocked(
     obstacles: tuple[Obstacle, ...] = (),
     margin: float = 0.0,
 ) -> NDArray[np.bool_]:
-    """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box.
+    """(N,) True where the 3D segment from starts[i] to ends[i] crosses an obstacle's box,
+    its faces included.
 
-    The slab test, for all segments and obstacles at once (beyond :data:`DENSE_PAIRS`
-    pairs, for the few that need it: the same answer).
+    Where a segment runs between a box's floor and top along its whole length, the test is
+    2D: whether the segment's plan meets the footprint (shapely's predicate on the
+    footprints placed in W). Only the boxes a segment passes over or under need their
+    height: the slab test, in the box's own frame. Both for the pairs a search tree of the
+    footprints finds, all segments at once.
 
     Args:
         space: gives the floor height (obstacles stand on the floor).
@@ -256,30 +249,34 @@ def segment_blocked(
     b = np.array(ends, dtype=float, ndmin=2)
     a, b = np.broadcast_arrays(a, b)
     obs = tuple(obstacles) or space.obstacles
-    if len(obs) * len(a) <= DENSE_PAIRS:
-        boxes = (x[:, None] for x in _boxes(space, obs, margin))
-        return _slab_hits(*boxes, a, b).any(axis=0)
+    blocked = np.zeros(len(a), dtype=bool)
+    if not obs or not len(a):
+        return blocked
     centre, c, s, lo, hi = _kept(
         obs, f"boxes {space.floor_z!r}", float(margin), _boxes_of(space.floor_z)
     )
     lines = shapely.linestrings(np.stack([a[:, :2], b[:, :2]], axis=1))
-    blocked = np.zeros(len(a), dtype=bool)
-    # The boxes that stand from below the lowest end to above the highest block a segment
-    # wherever it crosses their footprints: where it crosses their union shrunk by
-    # NEAR_TOLERANCE (one prepared polygon) it is blocked; the rest get the slab test.
-    z = np.concatenate([a[:, 2], b[:, 2]])
-    tall = (lo[:, 2] <= z.min()) & (hi[:, 2] >= z.max())
-    if tall.any():
-        which = f"walls {np.packbits(tall).tobytes().hex()} {space.floor_z!r}"
-        walls = _kept(obs, which, float(margin), _walls(tall))
-        blocked = np.asarray(shapely.intersects(walls, lines), dtype=bool)
-    rest = np.flatnonzero(~blocked)
-    if rest.size:
-        tree = _kept(obs, "grown tree", float(margin), _grown_tree)
-        seg, ob = tree.query(lines[rest], predicate="intersects")
-        seg = rest[seg]
-        hit = _slab_hits(centre[ob], c[ob], s[ob], lo[ob], hi[ob], a[seg], b[seg])
-        blocked[seg[hit]] = True
+    # The pairs whose plans may meet: the footprints grown by NEAR_TOLERANCE (the slab
+    # test and the footprint placed in W round a side differently).
+    tree = _kept(obs, "grown tree", float(margin), _grown_tree)
+    seg, ob = tree.query(lines, predicate="intersects")
+    low = np.minimum(a[seg, 2], b[seg, 2])
+    high = np.maximum(a[seg, 2], b[seg, 2])
+    tall = (lo[ob, 2] <= low) & (hi[ob, 2] >= high)
+    feet = _kept(obs, "tree", float(margin), _footprint_tree).geometries
+    flat = shapely.intersects(feet[ob[tall]], lines[seg[tall]])
+    blocked[seg[tall][flat]] = True
+    slab = ~tall
+    hit = _slab_hits(
+        centre[ob[slab]],
+        c[ob[slab]],
+        s[ob[slab]],
+        lo[ob[slab]],
+        hi[ob[slab]],
+        a[seg[slab]],
+        b[seg[slab]],
+    )
+    blocked[seg[slab][hit]] = True
     return blocked
 
 
@@ -292,23 +289,6 @@ def _boxes_of(floor_z: float) -> Any:
         for x in out:
             x.flags.writeable = False
         return out
-
-    return make
-
-
-def _walls(tall: NDArray[np.bool_]) -> Any:
-    """``make`` of :func:`_kept`: the union of the ``tall`` obstacles' footprints grown by
-    the margin, shrunk by :data:`NEAR_TOLERANCE`, prepared."""
-
-    def make(obstacles: tuple[Obstacle, ...], margin: float, thread: int) -> shapely.Geometry:
-        feet = [
-            _footprint(ob, margin, ob.center)
-            for ob, keep in zip(obstacles, tall, strict=True)
-            if keep
-        ]
-        union = shapely.union_all(feet).buffer(-NEAR_TOLERANCE, join_style="mitre")
-        shapely.prepare(union)
-        return union
 
     return make
 
@@ -330,7 +310,7 @@ def _slab_hits(
     b: NDArray,
 ) -> NDArray[np.bool_]:
     """Whether segments a-b cross boxes (the slab test), elementwise: boxes as
-    :func:`_boxes` gives them with shapes (..., 2), (...), (...), (..., 3), (..., 3) and
+    :func:`_box_arrays` gives them with shapes (..., 2), (...), (...), (..., 3), (..., 3) and
     (N, 3) segment ends, broadcast to (...) over the boxes' leading axes (O, 1 against N
     segments gives (O, N); P gathered pairs give (P,))."""
     # Both ends in each obstacle's frame, per axis.

@@ -119,9 +119,12 @@ def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin
     margin=st.sampled_from([0.0, 0.05, 0.3]),
     seed=st.integers(0, 2**32 - 1),
 )
-def test_the_culled_slab_test_is_the_dense_one(space, boxes, margin, seed):
-    # Above DENSE_PAIRS only the segments and boxes that need it are tested: the same answer,
-    # also for segments that graze a box's side, start on it or run along it.
+def test_the_plan_and_slab_tests_are_the_slab_test_of_every_pair(space, boxes, margin, seed):
+    # Shapely's plan test where a box is taller than the segment, the slab test only for the
+    # pairs that need it: the answer of the slab test of every segment against every box,
+    # also for vertical segments and segments that start over a box. A segment along a side
+    # touches its face, which blocks it; the slab test, in the box's own frame, may round
+    # the side off by a bit and let it pass.
     obstacles = tuple(
         Obstacle(name=f"b{k}", center=(x, y), size=(sx, sy, h), yaw_deg=yaw)
         for k, (x, y, sx, sy, h, yaw) in enumerate(boxes)
@@ -138,14 +141,32 @@ def test_the_culled_slab_test_is_the_dense_one(space, boxes, margin, seed):
         a[:50, 0] = b[:50, 0] = first.center[0] + half  # along the first box's side at yaw 0
         b[50:100, :2] = a[50:100, :2]  # vertical segments
         a[100:150, :2] = first.center  # starting over the first box
-        with mock.patch.object(geometry, "DENSE_PAIRS", 10**9):
-            dense = segment_blocked(space, a, b, obstacles, margin)
-        with mock.patch.object(geometry, "DENSE_PAIRS", 0):
-            culled = segment_blocked(space, a, b, obstacles, margin)
-        np.testing.assert_array_equal(culled, dense)
+        got = segment_blocked(space, a, b, obstacles, margin)
+        boxes_ = geometry._box_arrays(space.floor_z, obstacles, margin)
+        dense = geometry._slab_hits(*(x[:, None] for x in boxes_), a, b).any(axis=0)
+        np.testing.assert_array_equal(got[50:], dense[50:])
+        assert got[:50][dense[:50]].all()
+        if first.yaw == 0.0 and top <= first.size[2]:
+            # Below the first box's top, along its side: blocked where it runs beside it.
+            cy, hy = first.center[1], 0.5 * first.size[1] + margin
+            y0, y1 = np.minimum(a[:50, 1], b[:50, 1]), np.maximum(a[:50, 1], b[:50, 1])
+            beside = (y0 < cy + hy - 1e-9) & (y1 > cy - hy + 1e-9)
+            assert got[:50][beside].all()
     # Below every box's top, a segment that starts over the first box is blocked: the test
     # has blocked segments to compare (above, a small box may meet none of them).
     assert dense[100:150].all()
+
+
+def test_a_segment_along_a_face_below_the_top_is_blocked(space):
+    # 4.0 + 0.025 m in W is 4.025; in the box's frame 4.025 - 4.0 rounds above 0.025, where
+    # the slab test put it outside the box.
+    post = Obstacle(name="post", center=(4.0, 0.0), size=(0.05, 1.0, 1.0))
+    z = space.floor_z + 0.5
+    along = segment_blocked(space, [4.025, -2.0, z], [4.025, 2.0, z], (post,))
+    beside = segment_blocked(space, [4.0251, -2.0, z], [4.0251, 2.0, z], (post,))
+    over = segment_blocked(space, [4.025, -2.0, z + 1.0], [4.025, 2.0, z + 1.0], (post,))
+    assert along.tolist() == [True]
+    assert beside.tolist() == over.tolist() == [False]
 
 
 def _box_frame(obstacle: Obstacle, points: np.ndarray) -> np.ndarray:
