@@ -114,6 +114,7 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 report=False,
                 advertised_noise=spec.scenario.noise,
                 strategy=spec.strategy,
+                cameras=False,
             )
         except Exception as exc:
             alone = "" if spec.config == "all" else f" (with {spec.config} noise alone)"

@@ -54,6 +54,7 @@ def run_campaign(
     progress: Callable[[Progress], None] | None,
     report: bool,
     overwrite: bool,
+    cameras: bool = True,
 ) -> dict[str, Any]:
     """Run the campaign on the rig ``open_rig`` gives, log it, and write its outputs.
 
@@ -65,8 +66,8 @@ def run_campaign(
         open_rig: given the log, opens the devices and returns them, what closes them, and
             the backend's timings (filled as it runs). The devices are closed (robots
             stopped) however the campaign ends, Ctrl-C included; the log keeps what came.
-        strategy: the campaign's strategy. progress, report, overwrite: as
-            :func:`run_scenario`.
+        strategy: the campaign's strategy. progress, report, overwrite, cameras: as
+            :func:`twin.run.runner.run_scenario`.
     """
     folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
     with folder:  # held until the run ends, however it ends
@@ -111,7 +112,8 @@ def run_campaign(
         results.update(adjusted_results(messages, **adjustment_settings(sc)))
         text = json.dumps(results, indent=2, allow_nan=False) + "\n"
         write_text_atomic(out / "results.json", text)
-        write_cameras(results, messages, out / "cameras", camera_identity(sc))
+        if cameras:
+            write_cameras(results, messages, out / "cameras", camera_identity(sc))
         if report:
             write_report(sc, results, out)
         folder.finished(calibrations=len(results["calibrations"]))

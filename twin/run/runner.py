@@ -54,6 +54,7 @@ def run_scenario(
     strategy: Strategy | str | None = None,
     adapt_rig: Callable[[SimRig], Rig] | None = None,
     overwrite: bool = False,
+    cameras: bool = True,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
 
@@ -78,6 +79,8 @@ def run_scenario(
             campaign runs with: the devices wrapped to inject a fault, say
             (:mod:`twin.hal.wrappers`). The recorder wraps what it returns.
         overwrite: replace what an earlier run wrote in ``out_dir``.
+        cameras: write ``cameras/`` (a Monte-Carlo trial, which reads only the results and
+            the log, does not).
 
     Returns:
         The results (also in ``results.json``).
@@ -114,7 +117,9 @@ def run_scenario(
         return devices, sim.close, sim.rig.timings
 
     meta = {"fidelity": fidelity, "seed": sc.seed, "noise": noise}
-    return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
+    return run_campaign(
+        sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite, cameras
+    )
 
 
 def check_scenario(
