@@ -28,25 +28,25 @@ SMOKE = Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml"
 @pytest.mark.slow
 def test_batch_and_geometric_give_the_same_rms_camera_error(tmp_path):
     """The paper's stops, where every LED of a stop shows (the stops chosen for accuracy:
-    the next test), without the reference set (no part of the position error; a geometric
-    trial takes about 0.3 s instead of 0.5 s).
+    the next test), without the reference set (no part of the position error).
 
-    120 geometric trials beside 3000 batch trials: the ratio is known within 5.7 % (one
+    60 geometric trials beside 2000 batch trials: the ratio is known within 8.4 % (one
     bootstrap standard deviation for these seeds; to first order
-    sqrt(0.70**2 / 120 + 0.66**2 / 3000) = 6.5 %), asserted below 6.25 %, so that the band
-    1 +- 0.25 is at least four of them (measured ratio 0.94). The 20 % band of 280 trials:
-    the benchmark.
+    sqrt(0.70**2 / 60 + 0.66**2 / 2000) = 9.1 %), asserted below 8.75 %, so that the band
+    1 +- 0.35 is at least four of them (measured ratio 0.98). Were the fidelities to agree,
+    a ratio outside four standard deviations comes about once in 10 000 seeds (normal
+    tail, 6e-5). The 20 % band of 280 trials (whole campaign): the benchmark.
     """
     values = {"campaign.strategy": "paper", "campaign.reference_cameras": []}
     smoke = with_values(load_scenario(SMOKE), values)
     kwargs = {"master_seed": 2026}
-    geometric = run_montecarlo(smoke, tmp_path / "g", 120, fidelity="geometric", **kwargs)
-    batch = run_montecarlo(smoke, tmp_path / "b", 3000, fidelity="batch", **kwargs)
+    geometric = run_montecarlo(smoke, tmp_path / "g", 60, fidelity="geometric", **kwargs)
+    batch = run_montecarlo(smoke, tmp_path / "b", 2000, fidelity="batch", **kwargs)
     r = rms_ratio(errors_by_trial(geometric), errors_by_trial(batch))
-    assert r.trials_a == 120
-    assert r.trials_b == 3000
-    assert r.std <= 0.25 / 4, f"25 % is not four standard deviations: std {r.std:.3f}"
-    assert 0.75 <= r.ratio <= 1.25, r
+    assert r.trials_a == 60
+    assert r.trials_b == 2000
+    assert r.std <= 0.35 / 4, f"35 % is not four standard deviations: std {r.std:.3f}"
+    assert 0.65 <= r.ratio <= 1.35, r
 
 
 @pytest.mark.slow
