@@ -84,7 +84,9 @@ def _geometric_errors(sc, seeds) -> np.ndarray:
     errors = []
     for seed in seeds:
         with tempfile.TemporaryDirectory() as tmp:
-            results = run_scenario(sc, tmp, fidelity="geometric", seed=seed, report=False)
+            results = run_scenario(
+                sc, tmp, fidelity="geometric", seed=seed, report=False, cameras=False
+            )
         (cal,) = results["calibrations"]
         errors.append(cal["truth"]["position_error_mm"])
     return np.array(errors)
