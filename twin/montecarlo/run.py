@@ -184,6 +184,7 @@ def run_montecarlo(
     overwrite: bool = False,
     chunk_size: int | None = None,
     adjust: bool = False,
+    report: bool = True,
 ) -> list[dict[str, Any]]:
     """Run ``trials`` trials of ``scenario`` per configuration; returns the sorted table.
 
@@ -212,6 +213,8 @@ def run_montecarlo(
             ``adjusted_*`` columns; on the paper's hall 13 trials/s instead of 100, the
             plan's recording aside). The geometric and render fidelities always adjust (as
             ``twin run`` does).
+        report: write ``figures/`` and ``report.md`` beside the table and the summary (a
+            caller that reads only the rows, a test say, need not draw them).
 
     Raises:
         ValueError: for bad counts (more than :data:`MAX_TABLE_ROWS` rows), an unknown
@@ -278,7 +281,7 @@ def run_montecarlo(
     rows = [r for r in rows if r["config"] in configs and r["trial"] < trials]
     settings["trials_per_second"] = n / elapsed if n and elapsed > 0 else None
     settings["wall_time_s"] = elapsed
-    write_outputs(rows, settings, out)
+    write_outputs(rows, settings, out, report)
     folder.finished(trials=trials)
     return rows
 
@@ -294,9 +297,11 @@ def _finite_or_null(value: Any) -> Any:
     return value
 
 
-def write_outputs(rows: list[dict[str, Any]], settings: dict[str, Any], out: Path) -> dict:
-    """``summary.json``, ``figures/`` and ``report.md`` of a finished table; returns the
-    summary."""
+def write_outputs(
+    rows: list[dict[str, Any]], settings: dict[str, Any], out: Path, report: bool = True
+) -> dict:
+    """``summary.json``, ``figures/`` and ``report.md`` (the last two only with ``report``) of
+    a finished table; returns the summary."""
     from twin.montecarlo.figures import write_figures
     from twin.montecarlo.report import write_report
     from twin.montecarlo.summary import summarise
@@ -304,6 +309,7 @@ def write_outputs(rows: list[dict[str, Any]], settings: dict[str, Any], out: Pat
     summary = summarise(rows, settings)
     text = json.dumps(_finite_or_null(summary), indent=2, allow_nan=False)
     write_text_atomic(out / SUMMARY, text + "\n")
-    figures = write_figures(rows, summary, out / "figures")
-    write_report(summary, figures, out)
+    if report:
+        figures = write_figures(rows, summary, out / "figures")
+        write_report(summary, figures, out)
     return summary

@@ -39,7 +39,7 @@ def test_batch_and_geometric_give_the_same_rms_camera_error(tmp_path):
     """
     values = {"campaign.strategy": "paper", "campaign.reference_cameras": []}
     smoke = with_values(load_scenario(SMOKE), values)
-    kwargs = {"master_seed": 2026}
+    kwargs = {"master_seed": 2026, "report": False}
     geometric = run_montecarlo(smoke, tmp_path / "g", 60, fidelity="geometric", **kwargs)
     batch = run_montecarlo(smoke, tmp_path / "b", 2000, fidelity="batch", **kwargs)
     r = rms_ratio(errors_by_trial(geometric), errors_by_trial(batch))
@@ -60,7 +60,7 @@ def test_batch_and_geometric_agree_with_accuracy_stops(tmp_path):
     # asserted below 8.75 %), and the band is four of those, 1 +- 0.35.
     values = {"campaign.data_stops": "accuracy", "campaign.reference_cameras": []}
     smoke = with_values(load_scenario(SMOKE), values)
-    kwargs = {"master_seed": 2026}
+    kwargs = {"master_seed": 2026, "report": False}
     geometric = run_montecarlo(smoke, tmp_path / "g", 60, fidelity="geometric", **kwargs)
     batch = run_montecarlo(smoke, tmp_path / "b", 2000, fidelity="batch", **kwargs)
     r = rms_ratio(errors_by_trial(geometric), errors_by_trial(batch))
@@ -87,7 +87,7 @@ def test_the_prediction_matches_the_batch_monte_carlo(tmp_path):
     # 0.64 / sqrt(2000) = 1.4 % (one standard deviation, measured tails), so the prediction
     # (frame transfer, pixel noise, and the LED points' shared errors) must land within
     # 15 %, ten of those. Without the points' shared errors it falls short by a factor 6.
-    rows = run_montecarlo(load_scenario(SMOKE), tmp_path, 2000, master_seed=7)
+    rows = run_montecarlo(load_scenario(SMOKE), tmp_path, 2000, master_seed=7, report=False)
     e = np.array([r["position_error_mm"] for r in rows])
     transfer = np.array([r["predicted_transfer_rms_mm"] for r in rows])
     own = np.array([r["predicted_calibration_rms_mm"] for r in rows])
@@ -105,7 +105,8 @@ def test_the_prediction_holds_the_marker_survey_error(tmp_path):
     # RMS error is known within about 1.5 %, the band is ten of those. Without the survey
     # part the prediction falls short by a factor 4.5.
     values = {"marker.survey_sigma_m": 0.003, "noise.marker_geometry_m": 0.003}
-    rows = run_montecarlo(with_values(load_scenario(SMOKE), values), tmp_path, 2000, master_seed=8)
+    sc = with_values(load_scenario(SMOKE), values)
+    rows = run_montecarlo(sc, tmp_path, 2000, master_seed=8, report=False)
     e = np.array([r["position_error_mm"] for r in rows])
     predicted = np.array(
         [r["predicted_transfer_rms_mm"] ** 2 + r["predicted_calibration_rms_mm"] ** 2 for r in rows]

@@ -103,7 +103,7 @@ def test_the_figures_draw_the_trials(reference, tmp_path, saved):
 
 def test_the_table_is_the_same_with_two_worker_processes(smoke, reference, tmp_path):
     ref_out, ref_rows = reference
-    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2)
+    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2, report=False)
     assert same_rows(rows, ref_rows)
     assert (tmp_path / TABLE).read_bytes() == (ref_out / TABLE).read_bytes()
 
@@ -113,17 +113,30 @@ def test_a_local_ray_instance_gives_the_same_rows(smoke, reference, tmp_path):
 
     _, ref_rows = reference
     try:
-        rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, workers=2, engine="ray")
+        rows = run_montecarlo(
+            smoke, tmp_path, TRIALS, master_seed=11, workers=2, engine="ray", report=False
+        )
     finally:
         ray.shutdown()
     assert same_rows(rows, ref_rows)
+
+
+def test_without_the_report_the_run_writes_its_table_and_summary_only(smoke, reference, tmp_path):
+    ref_out, ref_rows = reference
+    rows = run_montecarlo(smoke, tmp_path, TRIALS, master_seed=11, report=False)
+    assert same_rows(rows, ref_rows)
+    assert (tmp_path / TABLE).read_bytes() == (ref_out / TABLE).read_bytes()
+    assert json.loads((tmp_path / "summary.json").read_text())["trials_done"] == TRIALS
+    assert not (tmp_path / "report.md").exists()
+    assert not (tmp_path / "figures").exists()
 
 
 def test_the_table_is_the_same_whatever_the_chunk_size(smoke, reference, tmp_path):
     # One trial an array, or three and one: each trial's draws are its own.
     _, ref_rows = reference
     for size in (1, 3):
-        rows = run_montecarlo(smoke, tmp_path / str(size), TRIALS, master_seed=11, chunk_size=size)
+        out = tmp_path / str(size)
+        rows = run_montecarlo(smoke, out, TRIALS, master_seed=11, chunk_size=size, report=False)
         assert same_rows(rows, ref_rows)
 
 

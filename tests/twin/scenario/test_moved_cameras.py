@@ -97,7 +97,10 @@ def test_the_batch_fidelity_measures_a_moved_camera_against_where_it_stands(tmp_
     from twin.montecarlo import run_montecarlo
 
     path = _moved(tmp_path, '[[faults.moved_cameras]]\ncamera = "cam1"\nshift = [0.05, 0.0, 0.0]\n')
-    rows = run_montecarlo(load_scenario(path), tmp_path / "mc", 40, fidelity="batch", master_seed=3)
+    mc = tmp_path / "mc"
+    rows = run_montecarlo(
+        load_scenario(path), mc, 40, fidelity="batch", master_seed=3, report=False
+    )
     errors = np.array([r["position_error_mm"] for r in rows])
     assert len(errors) == 40
     assert np.median(errors) < 15.0
