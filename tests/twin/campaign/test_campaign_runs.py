@@ -183,7 +183,13 @@ def test_world_errors_grow_with_travel_and_local_errors_do_not(tmp_path):
     for seed in seeds:
         out = tmp_path / str(seed)
         res = run_scenario(
-            HALL, out, fidelity="geometric", seed=seed, report=False, strategy="paper"
+            HALL,
+            out,
+            fidelity="geometric",
+            seed=seed,
+            report=False,
+            strategy="paper",
+            cameras=False,
         )
         cal = {(c["camera"], c["visit"]): c for c in res["calibrations"]}
         first = cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"]
