@@ -191,6 +191,7 @@ def test_world_errors_grow_with_travel_and_local_errors_do_not(tmp_path):
             strategy="paper",
             cameras=False,
         )
+        assert not (out / "cameras").exists()  # asked for none: only the results and log
         cal = {(c["camera"], c["visit"]): c for c in res["calibrations"]}
         first = cal[("cam1", 1)]["errors"]["world"]["error_3d_mean_mm"]
         last = cal[("cam1", 2)]["errors"]["world"]["error_3d_mean_mm"]
