@@ -29,7 +29,7 @@ from twin.campaign.plan.clearance import (
     path_clear,
 )
 from twin.campaign.plan.occlusion import unhidden_yaw
-from twin.campaign.plan.ways import ROBOT_MARGIN, robots_clear, way_to
+from twin.campaign.plan.ways import ROBOT_MARGIN, WAY_CLEARANCE, robots_clear, way_to
 from twin.campaign.recovery import LegRecovery
 from twin.campaign.shooting import measure_child, moved_between, same_marker
 from twin.campaign.strategy import Leg, Move
@@ -99,6 +99,15 @@ class NoProgress(CampaignAborted):
 
 
 __all__ = ["FIX_ATTEMPTS", "SIDESTEPS", "CampaignAborted", "NoProgress", "Travel"]
+
+
+def _near_robot(
+    xy: NDArray[np.float64], robots: NDArray[np.float64], keep: NDArray[np.float64]
+) -> bool:
+    """Whether (2,) ``xy`` lies nearer a standing robot ((K, 2) centres, m) than the
+    distance ``keep`` (K,) a child's drive keeps from it."""
+    gap = np.linalg.norm(robots - np.asarray(xy, dtype=float).reshape(2), axis=1)
+    return bool((gap < keep).any())
 
 
 class Travel(LegRecovery):
@@ -196,24 +205,39 @@ class Travel(LegRecovery):
             and np.linalg.norm(move.on_route - move.stop.xy) > 0.1
         ):
             waypoints.append(move.on_route)  # along the route, then sideways to the stop
+        # A corner of the route where a robot stands (a leg that starts at a turn, the
+        # parent on it) is passed by: driven to, the child would push that robot, and be
+        # turned off its own estimate. The drive after it goes round, clear of the map.
+        standing = self.standing_robots(base.name) if base.name in self.rig.children else None
+        passed = False
         for point in waypoints:
-            if not self._drive_round(base, point).reached:
+            if standing is not None and _near_robot(point, *standing):
+                passed = True
+                continue
+            if not self._drive_round(base, point, keep_map=passed).reached:
                 return False
-        return self._drive_round(base, move.stop.xy, move.stop.yaw).reached
+            passed = False
+        return self._drive_round(base, move.stop.xy, move.stop.yaw, keep_map=passed).reached
 
     def _drive_round(
-        self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
+        self,
+        base: MobileBase,
+        goal_xy: NDArray[np.float64],
+        goal_yaw: float | None = None,
+        keep_map: bool = False,
     ) -> DriveResult:
         """:meth:`_drive`; a child's whose straight drive passes a standing robot closer
         than :meth:`standing_robots` keeps goes first through the corner of a way round it
         (:func:`twin.campaign.plan.ways.way_to`), where the map leaves one (else straight
         on, as planned). A route's corner can be where the parent stands (a leg that starts
         at a turn), and a child that left the route for a camera's data comes back to it
-        past the parent."""
+        past the parent. ``keep_map``: a drive that cuts a corner of the route (one passed
+        by) goes round where its straight line comes nearer the map than a way keeps."""
         if base.name in self.rig.children:
             here = base.odometry().pose[:2]
             robots, keep = self.standing_robots(base.name)
-            if not robots_clear(here, goal_xy, robots, keep):
+            cuts = keep_map and not path_clear(self.space, here, goal_xy, WAY_CLEARANCE)
+            if cuts or not robots_clear(here, goal_xy, robots, keep):
                 for corner in way_to(self.space, here, goal_xy, robots, keep) or []:
                     result = self._drive(base, corner)
                     if not result.reached:

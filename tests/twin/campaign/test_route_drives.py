@@ -87,3 +87,26 @@ def test_a_child_with_nothing_in_its_way_drives_the_route_as_planned(drives):
     corner, stop = np.array([-1.5, 2.0]), np.array([0.5, 2.5])  # north of the parent
     assert travel.drive_along(sim.rig.children["child1"], _move(corner, stop))
     np.testing.assert_allclose(goals, [corner, stop])
+
+
+def test_a_route_corner_where_the_parent_stands_is_passed_by(drives):
+    # A leg that starts at the route's turn: the child's first corner is the parent's own
+    # station. Driven to, the child is put onto the parent, pushed off and turned, and its
+    # own estimate is then off by what the push did.
+    sim, travel, goals = drives
+    parent = travel.cps.parent.translation[:2].copy()
+    stop = np.array([1.0, 1.2])
+    robots, keep = travel.standing_robots("child1")
+    assert travel.drive_along(sim.rig.children["child1"], _move(parent, stop))
+    assert all(np.linalg.norm(g - parent) >= keep[0] for g in goals[:-1])
+    np.testing.assert_allclose(goals[-1], stop)
+    start = np.array([-1.5, 0.3])
+    for a, b in itertools.pairwise([start, *goals]):
+        for centre, room in zip(robots, keep, strict=True):
+            assert _nearest(a, b, centre) >= min(room, float(np.linalg.norm(a - centre))) - 1e-9
+    # Where its estimate says, to a few drives' stopping errors (0.02 m per axis), and
+    # heading as it believes (no push turned it).
+    truth = sim.frame.pose(sim.world.robot_pose("child1"))
+    believed = sim.rig.children["child1"].odometry().pose
+    assert np.linalg.norm(truth[:2] - believed[:2]) < 0.15
+    assert abs((truth[2] - believed[2] + np.pi) % (2 * np.pi) - np.pi) < np.radians(5.0)
