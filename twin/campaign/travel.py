@@ -71,6 +71,17 @@ before the station counts as moved, m. The parent measured it from this station 
 fix, or placing it): the two agree to the shots' noise, a few millimetres; a push of the
 parent that turns it 10 mrad moves a child 3 m away by 30 mm."""
 
+DETOUR_FACTOR = 2.0
+DETOUR_M = 4.0
+"""A child's way to a stop off the route with more than one corner is not driven where it
+is longer than :data:`DETOUR_FACTOR` times the straight line plus :data:`DETOUR_M`, m.
+Both ends are in the standing parent's sight, and a way that long goes round a wall out
+of it: the child drives it on its odometry alone, its heading's error carried along, and
+may stop off its estimate by more than the way keeps from the walls (against a wall, it
+is turned, and the parent finds it nowhere near where it believes it is). A way of one
+corner beside the straight line (:data:`twin.campaign.plan.ways.CORNER_OFFSETS`) is
+driven whatever its length."""
+
 NO_PROGRESS = "no_progress"
 """The failure of a loop of the campaign that reached its bound (:mod:`twin.campaign.bounds`)."""
 
@@ -315,7 +326,7 @@ class Travel(LegRecovery):
     def drive_clear(self, child: str, goal_xy: NDArray[np.float64], goal_yaw: float) -> str:
         """Drive a child to a stop off the route by a way clear of the standing robots and
         the map (:func:`twin.campaign.plan.ways.way_to`); "" when it got there, else why
-        not.
+        not (no way, or one round a wall too long to drive blind: :data:`DETOUR_FACTOR`).
 
         A drive that ended against something (a collision, a timeout) may have left the
         child off its own estimate: it is measured where it stopped and its odometry
@@ -323,9 +334,14 @@ class Travel(LegRecovery):
         """
         base = self.rig.children[child]
         robots, keep = self.standing_robots(child)
-        way = way_to(self.space, self.child_pose(child)[:2], goal_xy, robots, keep)
+        here = self.child_pose(child)[:2]
+        way = way_to(self.space, here, goal_xy, robots, keep)
         if way is None:
             return "no way clear of the robots standing and the map"
+        straight = float(np.linalg.norm(goal_xy - here))
+        length = float(np.sum(np.linalg.norm(np.diff([here, *way, goal_xy], axis=0), axis=1)))
+        if len(way) > 1 and length > DETOUR_FACTOR * straight + DETOUR_M:
+            return f"the way round is {length:.1f} m long, for a stop {straight:.1f} m away"
         for corner, yaw in [*((c, None) for c in way), (goal_xy, goal_yaw)]:
             result = self._drive(base, corner, yaw)
             if not result.reached:

@@ -14,9 +14,12 @@ import pytest
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Campaign, CampaignAborted
 from twin.campaign.plan.stop import Stop
+from twin.campaign.plan.ways import way_to
 from twin.campaign.strategy import StopPlan
+from twin.campaign.travel import DETOUR_FACTOR, DETOUR_M
 from twin.hal.readings import DriveStatus
 from twin.scenario import load_scenario
+from twin.scenario.schema import Obstacle
 from twin.sim.rig import build_sim_rig
 from twin.sim.world import build_world
 
@@ -85,6 +88,33 @@ def test_a_child_with_no_clear_way_does_not_drive(monkeypatch):
     why = campaign.travel.drive_clear("child1", np.array([6.5, -2.2]), 0.0)  # the pillar
     sim.close()
     assert "no way" in why
+    assert drives == []
+
+
+def test_a_stop_behind_a_wall_with_a_long_way_round_is_not_driven_to(monkeypatch):
+    # A wall from the room's west side to x = 3 m; the child north of it, the stop 1.2 m
+    # south. The way round its end is about 10 m, out of the parent's sight behind the
+    # wall: driven on odometry alone, it would leave the child off its estimate.
+    sc = load_scenario(SMOKE)
+    wall = Obstacle(name="wall", center=(0.5, -1.0), size=(5.0, 0.1, 3.0))
+    sc = sc.model_copy(
+        update={"space": sc.space.model_copy(update={"obstacles": (*sc.space.obstacles, wall)})}
+    )
+    sim = build_sim_rig(build_world(sc), "geometric", seed=5)
+    travel = Campaign(sim.rig, sc, _Events()).travel
+    child = sim.rig.children["child1"]
+    assert child.drive_to(np.array([-1.2, -0.5])).reached
+    start, stop = child.odometry().pose[:2].copy(), np.array([-1.2, -1.7])
+    way = way_to(sc.space, start, stop, *travel.standing_robots("child1"))
+    assert way is not None
+    assert len(way) > 1
+    length = np.sum(np.linalg.norm(np.diff([start, *way, stop], axis=0), axis=1))
+    assert length > DETOUR_FACTOR * np.linalg.norm(stop - start) + DETOUR_M
+    drives: list[object] = []
+    monkeypatch.setattr(child, "drive_to", lambda *a, **k: drives.append(a))
+    why = travel.drive_clear("child1", stop, 0.0)
+    sim.close()
+    assert f"the way round is {length:.1f} m long, for a stop 1.2 m away" in why
     assert drives == []
 
 
