@@ -17,9 +17,12 @@ import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Campaign
+from twin.campaign.plan.clearance import path_clear
 from twin.campaign.plan.stop import Stop
+from twin.campaign.plan.ways import WAY_CLEARANCE
 from twin.campaign.strategy import Move
 from twin.scenario import load_scenario
+from twin.scenario.schema import Obstacle
 from twin.sim.rig import build_sim_rig
 from twin.sim.world import build_world
 
@@ -110,3 +113,35 @@ def test_a_route_corner_where_the_parent_stands_is_passed_by(drives):
     believed = sim.rig.children["child1"].odometry().pose
     assert np.linalg.norm(truth[:2] - believed[:2]) < 0.15
     assert abs((truth[2] - believed[2] + np.pi) % (2 * np.pi) - np.pi) < np.radians(5.0)
+
+
+def test_the_drive_past_a_corner_passed_by_goes_round_the_map(monkeypatch):
+    # The straight line from the child to its stop, the corner at the parent passed by,
+    # keeps clear of the robots but runs through a post that the route's turn went round.
+    sc = load_scenario(SMOKE)
+    post = Obstacle(name="post", center=(-0.7, -0.62), size=(0.3, 0.3, 2.0))
+    space = sc.space.model_copy(update={"obstacles": (*sc.space.obstacles, post)})
+    sc = sc.model_copy(update={"space": space})
+    sim = build_sim_rig(build_world(sc), "geometric", seed=5)
+    travel = Campaign(sim.rig, sc, _Quiet()).travel
+    child = sim.rig.children["child1"]
+    assert child.drive_to(np.array([-1.5, 0.3])).reached
+    start, stop = child.odometry().pose[:2].copy(), np.array([0.5, -2.0])
+    parent = travel.cps.parent.translation[:2].copy()
+    robots, keep = travel.standing_robots("child1")
+    assert all(_nearest(start, stop, c) >= k for c, k in zip(robots, keep, strict=True))
+    assert not path_clear(sc.space, start, stop, WAY_CLEARANCE)
+    goals: list[np.ndarray] = []
+    driving = child.drive_to
+
+    def drive(goal_xy, goal_yaw=None):
+        goals.append(np.asarray(goal_xy, dtype=float).copy())
+        return driving(goal_xy, goal_yaw)
+
+    monkeypatch.setattr(child, "drive_to", drive)
+    assert travel.drive_along(child, _move(parent, stop))
+    sim.close()
+    assert len(goals) >= 2  # round the post, then the stop
+    np.testing.assert_allclose(goals[-1], stop)
+    for a, b in itertools.pairwise([start, *goals]):
+        assert path_clear(sc.space, a, b, WAY_CLEARANCE - 1e-6)
