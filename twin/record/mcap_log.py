@@ -9,6 +9,10 @@ Layout: one channel per (topic, record type), message encoding ``"json"``; each 
 type has a ``"jsonschema"`` schema that names its fields, plain mappings have none.
 Message log and publish times are the record timestamps in ns (``round(t * 1e9)``, at
 least 0); the exact timestamp stays in the record itself.
+
+With a :class:`~twin.record.foxglove.FoxgloveStream`, the recorder also writes, after each
+record, the Foxglove messages it gives (message encoding ``"protobuf"``, Foxglove's own
+schemas): :func:`read_log` leaves them out.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import os
 import struct
 from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mcap.exceptions import EndOfFile, McapError
 from mcap.opcode import Opcode
@@ -32,10 +36,16 @@ from twin.closing import Closing
 from twin.interruption import deferred_interrupts
 from twin.record.codec import TYPE_KEY, decode, encode
 
+if TYPE_CHECKING:
+    from twin.record.foxglove import FoxgloveStream
+
 __all__ = ["LogContents", "LogMessage", "McapRecorder", "read_log"]
 
 MESSAGE_ENCODING = "json"
 SCHEMA_ENCODING = "jsonschema"
+FOXGLOVE_ENCODING = "protobuf"
+"""The message encoding of the Foxglove channels (:mod:`twin.record.foxglove`), which
+:func:`read_log` leaves out."""
 LIBRARY = "camnet-twin twin.record"
 
 _MAX_TIME_NS = 2**64 - 1
@@ -53,9 +63,17 @@ class McapRecorder(Closing):
         path: the file to write (replaced if it exists).
         flush_every: hand the written bytes to the operating system after this many
             messages (>= 1). What was handed over survives a kill of this process.
+        foxglove: derives Foxglove's messages from the records, written after each record
+            (None: none).
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, flush_every: int = 8) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        flush_every: int = 8,
+        foxglove: FoxgloveStream | None = None,
+    ) -> None:
         if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 1:
             raise ValueError(f"flush_every must be an int >= 1, got {flush_every!r}")
         self.path = Path(path)
@@ -69,6 +87,17 @@ class McapRecorder(Closing):
         self._sequence: dict[int, int] = {}
         self._count = 0
         self._closed = False
+        self._foxglove = foxglove
+        self._foxglove_channels = None
+        if foxglove is not None:
+            from twin.record.foxglove import FoxgloveChannels
+
+            self._foxglove_channels = FoxgloveChannels(self._writer)
+
+    @property
+    def foxglove_counts(self) -> dict[str, int]:
+        """Foxglove messages written so far, by topic."""
+        return dict(self._foxglove_channels.counts) if self._foxglove_channels else {}
 
     @property
     def count(self) -> int:
@@ -87,7 +116,8 @@ class McapRecorder(Closing):
         if not isinstance(topic, str) or not topic:
             raise ValueError(f"topic must be a non-empty str, got {topic!r}")
         time_ns = _time_ns(timestamp, topic)
-        payload = json.dumps(encode(record), allow_nan=False, separators=(",", ":"))
+        data = encode(record)
+        payload = json.dumps(data, allow_nan=False, separators=(",", ":"))
         # An interruption waits until the record is written whole.
         with deferred_interrupts():
             channel_id = self._channel(topic, record)
@@ -100,9 +130,24 @@ class McapRecorder(Closing):
                 publish_time=time_ns,
                 sequence=sequence,
             )
+            if self._foxglove is not None:
+                self._write_foxglove(topic, data, float(timestamp), time_ns)
             self._count += 1
             if self._count % self.flush_every == 0:
                 self.flush()
+
+    def _write_foxglove(self, topic: str, data: dict[str, Any], t: float, time_ns: int) -> None:
+        """The Foxglove messages of one record, at its time. A record they cannot be drawn
+        from (a field missing or of another type) is said so on Foxglove's log; the record
+        itself is written all the same, and the run goes on."""
+        assert self._foxglove is not None
+        assert self._foxglove_channels is not None
+        try:
+            messages = self._foxglove.feed(topic, data, t)
+        except (ValueError, KeyError, TypeError, IndexError) as exc:
+            messages = self._foxglove.unreadable(topic, t, exc)
+        for fox_topic, message in messages:
+            self._foxglove_channels.write(fox_topic, message, time_ns)
 
     def flush(self) -> None:
         """Hand what was written to the operating system (no fsync)."""
@@ -224,7 +269,8 @@ class LogContents:
 
 
 def read_log(path: str | os.PathLike[str]) -> LogContents:
-    """Read an MCAP log of JSON messages, whole or cut short.
+    """Read an MCAP log of JSON messages, whole or cut short (its Foxglove channels, if
+    any, left out).
 
     A file cut anywhere (a killed writer) gives every whole message before the cut and
     ``complete=False``. Raises FileNotFoundError for a missing file and ValueError, naming
@@ -278,10 +324,13 @@ def _stream_records(data: bytes, path: Path) -> list[McapRecord]:
 def _messages(records: list[McapRecord], path: Path) -> list[LogMessage]:
     channels: dict[int, Channel] = {}
     out: list[LogMessage] = []
+    foxglove: set[int] = set()
     for rec in records:
         if isinstance(rec, Channel):
             channels[rec.id] = rec
-        elif isinstance(rec, Message):
+            if rec.message_encoding == FOXGLOVE_ENCODING:
+                foxglove.add(rec.id)
+        elif isinstance(rec, Message) and rec.channel_id not in foxglove:
             out.append(_log_message(rec, channels, path))
     return out
 

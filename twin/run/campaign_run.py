@@ -33,6 +33,7 @@ from twin.hal.recording import Recorder, recorded
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder, read_log
+from twin.record.foxglove import FoxgloveStream
 from twin.record.run_record import scenario_fields
 from twin.report import write_report
 from twin.report.reading import planned_visits
@@ -74,7 +75,7 @@ def run_campaign(
         out = folder.path
         log_path = out / "log.mcap"
         t0 = time.perf_counter()
-        with McapRecorder(log_path) as log:
+        with McapRecorder(log_path, foxglove=FoxgloveStream(sc)) as log:
             log.record(
                 META,
                 {

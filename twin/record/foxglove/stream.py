@@ -1,0 +1,264 @@
+"""The records of a run in, Foxglove's messages out: the same for a run (fed by the log's
+recorder as each record is written) and for a replay (fed by the log's messages).
+
+Each record is taken in its logged form (:func:`twin.record.codec.encode`: a dict of JSON
+values), so a run and a replay of its log give the same messages.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from foxglove.messages import Log, LogLevel, Pose, PosesInFrame
+
+from calib.io.camera_files import camera_from_dict
+from twin.instruments.polar import polar2cartesian
+from twin.instruments.tilt import level_points
+from twin.record.foxglove import frames, scene
+from twin.record.foxglove.convert import timestamp, vector3, yaw_quaternion
+
+TF = "/foxglove/tf"
+SCENE_SITE = "/foxglove/scene/site"
+SCENE_CAMERAS = "/foxglove/scene/cameras"
+SCENE_POINTS = "/foxglove/scene/points"
+SCENE_COVARIANCE = "/foxglove/scene/parent_covariance"
+SCENE_SIGHTS = "/foxglove/scene/lines_of_sight"
+LOG = "/foxglove/log"
+TRACK_ESTIMATE = "/foxglove/track/instrument_estimate"
+TRACK_TRUTH = "/foxglove/track/instrument_truth"
+
+TOPICS: Mapping[str, str] = {
+    TF: "foxglove.FrameTransforms",
+    SCENE_SITE: "foxglove.SceneUpdate",
+    SCENE_CAMERAS: "foxglove.SceneUpdate",
+    SCENE_POINTS: "foxglove.SceneUpdate",
+    SCENE_COVARIANCE: "foxglove.SceneUpdate",
+    SCENE_SIGHTS: "foxglove.SceneUpdate",
+    LOG: "foxglove.Log",
+    TRACK_ESTIMATE: "foxglove.PosesInFrame",
+    TRACK_TRUTH: "foxglove.PosesInFrame",
+}
+"""Every topic a stream writes, with its schema."""
+
+# The run's topics this stream reads (written here, not imported, so that the recorder
+# does not load the campaign).
+META = "/run/meta"
+TRUTH_CAMERA = "/truth/camera"
+TRUTH_INSTRUMENT = "/truth/instrument"
+PARENT_FIX = "/campaign/parent_fix"
+POINT = "/campaign/point"
+CALIBRATION = "/campaign/calibration"
+FAILURE = "/campaign/failure"
+EVENT = "/campaign/event"
+STAGE = "/campaign/stage"
+SKIPPED = "/campaign/skipped_visit"
+SHOT = "/total_station/shot"
+SHOT_FAILURE = "/total_station/failure"
+INSTRUMENT_HEIGHT_M = 0.40
+"""The floor below W without a scenario (the instrument's usual height), m."""
+
+Message = tuple[str, Any]
+"""A topic and a Foxglove message."""
+
+
+class FoxgloveStream:
+    """Turns a run's records into Foxglove's messages (:data:`TOPICS`).
+
+    Args:
+        scenario: the run's scenario (:class:`twin.scenario.Scenario`), for the site, the
+            route, the stations and the floor's height; None: none of these (the robots'
+            frames are then drawn 0.40 m below W).
+    """
+
+    def __init__(self, scenario: Any | None = None) -> None:
+        self.scenario = scenario
+        self.floor_z = scenario.space.floor_z if scenario is not None else -INSTRUMENT_HEIGHT_M
+        self._started = False
+        self._instrument: tuple[np.ndarray, float] = (np.zeros(3), 0.0)
+        self._points: dict[tuple[str, int], list[tuple[str, dict[str, Any]]]] = {}
+        self._counts: dict[str, int] = {}
+        self._track: list[Pose] = []
+        self._truth_track: list[Pose] = []
+
+    def feed(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        """The messages that the record ``data`` (its logged form) on ``topic`` at ``t`` s
+        gives, in order (none for most records)."""
+        out: list[Message] = []
+        if not self._started:
+            self._started = True
+            out += self._start()
+        handler = _HANDLERS.get(topic)
+        if handler is None and topic.startswith("/base/"):
+            handler = FoxgloveStream._base
+        if handler is not None:
+            out += handler(self, topic, data, t)
+        return out
+
+    def unreadable(self, topic: str, t: float, exc: Exception) -> list[Message]:
+        """A line of Foxglove's log saying that the record on ``topic`` at ``t`` s could
+        not be drawn, and why."""
+        text = f"cannot draw the record on {topic}: {type(exc).__name__}: {exc}"
+        return [(LOG, Log(timestamp=timestamp(t), level=LogLevel.Error, message=text, name=topic))]
+
+    # --- handlers ------------------------------------------------------------------------
+
+    def _start(self) -> list[Message]:
+        """W (and the map's frame) and the site, at 0."""
+        sc = self.scenario
+        if sc is None:
+            return []
+        out: list[Message] = [(SCENE_SITE, scene.update(scene.site_entities(sc)))]
+        if sc.space.map is not None:
+            out.append((TF, frames.transforms([frames.map_transform(sc.space.map.pose)])))
+        return out
+
+    def _truth_camera(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        name = str(data["name"])
+        return self._camera(t, name, "built", data["camera"], scene.BUILT, {"truth": "true"})
+
+    def _calibration(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        name, visit = str(data["camera"]), int(data["visit"])
+        meta = {"sigma_px": data.get("sigma_px"), "points": data.get("points")}
+        out = self._camera(t, name, f"visit{visit}", data["camera_model"], scene.CALIBRATED, meta)
+        camera = camera_from_dict(data["camera_model"], "calibration")
+        recoloured = []
+        for id_, p in self._points.get((name, visit), []):
+            leds = np.asarray(p["leds_world"], dtype=float).reshape(-1, 3)
+            pixels = np.asarray(p["pixels"], dtype=float).reshape(-1, 2)
+            res = np.linalg.norm(camera.project_or_nan(leds) - pixels, axis=1)
+            recoloured.append(scene.points_entity(t, id_, leds, res))
+        if recoloured:
+            out.append((SCENE_POINTS, scene.update(recoloured)))
+        return out
+
+    def _camera(
+        self, t: float, name: str, which: str, model: Any, c: Any, meta: Mapping[str, Any]
+    ) -> list[Message]:
+        position, rotation = frames.camera_pose(model)
+        frame = frames.camera_frame(name, which)
+        camera = camera_from_dict(model, frame)
+        tf = frames.transforms([frames.transform(t, frame, position, rotation)])
+        frustum = scene.frustum_entity(t, f"{name}/{which}", camera, self.floor_z, c, meta)
+        return [(TF, tf), (SCENE_CAMERAS, scene.update([frustum]))]
+
+    def _truth_instrument(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        xyz, yaw = np.asarray(data["translation"], dtype=float), float(data["yaw"])
+        self._truth_track.append(_yaw_pose(xyz, yaw))
+        tf = frames.transforms([frames.transform(t, frames.INSTRUMENT_TRUTH, xyz, yaw)])
+        return [(TF, tf), (TRACK_TRUTH, self._poses(t, self._truth_track))]
+
+    def _parent_fix(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        xyz, yaw = np.asarray(data["translation"], dtype=float), float(data["yaw"])
+        self._instrument = (xyz, yaw)
+        self._track.append(_yaw_pose(xyz, yaw))
+        tf = frames.transforms([frames.transform(t, frames.INSTRUMENT_ESTIMATE, xyz, yaw)])
+        out: list[Message] = [(TF, tf), (TRACK_ESTIMATE, self._poses(t, self._track))]
+        cov = np.asarray(_nan(data["covariance"]), dtype=float).reshape(4, 4)[1:, 1:]
+        ellipsoid = scene.ellipsoid_entity(t, f"fix{int(data['index'])}", xyz, cov)
+        if ellipsoid is not None:
+            out.append((SCENE_COVARIANCE, scene.update([ellipsoid])))
+        return out
+
+    def _base(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        """A robot's odometry, a drive's result or a pose the campaign set."""
+        odometry = data.get("odometry") if data.get("_type") == "DriveResult" else data
+        if not isinstance(odometry, Mapping) or odometry.get("_type") != "OdometryReading":
+            return []
+        x, y, yaw = (odometry.get(k) for k in ("x", "y", "yaw"))
+        if not all(isinstance(v, int | float) for v in (x, y, yaw)):
+            return []
+        frame = frames.robot_frame(str(odometry["robot"]))
+        tf = frames.transform(t, frame, (x, y, self.floor_z), float(yaw))
+        return [(TF, frames.transforms([tf]))]
+
+    def _point(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        camera, visit = str(data["camera"]), int(data["visit"])
+        n = self._count(f"point/{camera}/{visit}")
+        id_ = f"{data['dataset']}/{camera}/visit{visit}/{n}"
+        if data["dataset"] == "visit":
+            self._points.setdefault((camera, visit), []).append((id_, dict(data)))
+        leds = np.asarray(_nan(data["leds_world"]), dtype=float).reshape(-1, 3)
+        return [(SCENE_POINTS, scene.update([scene.points_entity(t, id_, leds, None)]))]
+
+    def _shot(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        polar = [data.get(k) for k in ("distance", "horizontal", "zenith")]
+        if not all(isinstance(v, int | float) for v in polar):
+            return []
+        point = polar2cartesian(np.asarray(polar, dtype=float))
+        tilt = data.get("tilt") or {}
+        roll, pitch = tilt.get("roll"), tilt.get("pitch")
+        if isinstance(roll, int | float) and isinstance(pitch, int | float):
+            point = level_points(point, roll, pitch)
+        return self._sight(t, point, failed=False)
+
+    def _shot_failure(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        out = self._log(topic, data, t)
+        aim = (data.get("details") or {}).get("aim_level")
+        if isinstance(aim, list) and len(aim) == 3 and all(isinstance(v, int | float) for v in aim):
+            out += self._sight(t, np.asarray(aim, dtype=float), failed=True)
+        return out
+
+    def _sight(self, t: float, point_level: np.ndarray, *, failed: bool) -> list[Message]:
+        xyz, yaw = self._instrument
+        c, s = np.cos(yaw), np.sin(yaw)
+        world = xyz + np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ point_level
+        id_ = f"shot{self._count('shot')}"
+        return [(SCENE_SIGHTS, scene.update([scene.sight_entity(t, id_, xyz, world, failed)]))]
+
+    def _log(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        """A failure, an event, a stage or a skipped visit as a line of Foxglove's log."""
+        kind = str(data.get("kind") or data.get("stage") or data.get("reason") or "")
+        if topic in (STAGE, EVENT):
+            level = LogLevel.Info
+        elif kind == "campaign_aborted":
+            level = LogLevel.Error
+        else:
+            level = LogLevel.Warning
+        who = [f"{k}={data[k]}" for k in ("robot", "camera", "visit") if data.get(k)]
+        said = str(data.get("message") or data.get("detail") or "")
+        text = f"{kind}: {said}" if said else kind
+        if who:
+            text += f" ({', '.join(who)})"
+        return [(LOG, Log(timestamp=timestamp(t), level=level, message=text, name=topic))]
+
+    # --- helpers -------------------------------------------------------------------------
+
+    def _count(self, key: str) -> int:
+        n = self._counts.get(key, 0)
+        self._counts[key] = n + 1
+        return n
+
+    @staticmethod
+    def _poses(t: float, track: list[Pose]) -> PosesInFrame:
+        return PosesInFrame(timestamp=timestamp(t), frame_id=frames.WORLD, poses=list(track))
+
+
+def _yaw_pose(xyz: np.ndarray, yaw: float) -> Pose:
+    """A pose at ``xyz`` (3,) m turned ``yaw`` rad about z."""
+    return Pose(position=vector3(xyz), orientation=yaw_quaternion(yaw))
+
+
+def _nan(value: Any) -> Any:
+    """A logged value with its nulls (NaN, infinity) as NaN."""
+    if value is None:
+        return np.nan
+    if isinstance(value, list):
+        return [_nan(v) for v in value]
+    return value
+
+
+_HANDLERS = {
+    TRUTH_CAMERA: FoxgloveStream._truth_camera,
+    TRUTH_INSTRUMENT: FoxgloveStream._truth_instrument,
+    PARENT_FIX: FoxgloveStream._parent_fix,
+    CALIBRATION: FoxgloveStream._calibration,
+    POINT: FoxgloveStream._point,
+    SHOT: FoxgloveStream._shot,
+    SHOT_FAILURE: FoxgloveStream._shot_failure,
+    FAILURE: FoxgloveStream._log,
+    EVENT: FoxgloveStream._log,
+    STAGE: FoxgloveStream._log,
+    SKIPPED: FoxgloveStream._log,
+}
