@@ -56,6 +56,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "default with --model opencv)",
     )
     p.add_argument("--no-report", action="store_true", help="skip the figures and report.md")
+    p.add_argument(
+        "--foxglove",
+        type=Path,
+        metavar="OUT.mcap",
+        help="write OUT.mcap instead of the results: the log's records with Foxglove's "
+        "channels (3D scene, frames, log, tracks) derived from them, as twin run writes "
+        "them today; for a log of any version (what it lacks is said). The site and route "
+        "come from the run's scenario, left out when it is not found",
+    )
     arguments.add_overwrite(p)
     p.set_defaults(func=run)
 
@@ -70,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.log.is_file():
         console.print(f"[red]error:[/red] {args.log}: no such log file", highlight=False)
         return 2
+    if args.foxglove is not None:
+        return _foxglove(args, console)
     out = args.out or args.log.parent / "replay"
     try:
         results = replay_log(
@@ -89,3 +100,26 @@ def run(args: argparse.Namespace) -> int:
     print_results(results, console)
     console.print(f"written in {out}")
     return 0 if results["calibrations"] else 1
+
+
+def _foxglove(args: argparse.Namespace, console: Console) -> int:
+    """``--foxglove``: the log with Foxglove's channels; exit code 0, 2 for bad input."""
+    from twin.run.replay import foxglove_log
+    from twin.scenario import ScenarioError
+
+    try:
+        counts = foxglove_log(
+            args.log,
+            args.foxglove,
+            scenario=args.scenario,
+            force=args.force,
+            overwrite=args.overwrite,
+            warn=lambda text: console.print(f"warning: {text}", markup=False),
+        )
+    except (ValueError, ScenarioError) as exc:
+        console.print(f"error: {exc}", markup=False)
+        return 2
+    for topic, n in counts.items():
+        console.print(f"{topic}: {n}", markup=False)
+    console.print(f"written {args.foxglove}", markup=False)
+    return 0

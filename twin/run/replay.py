@@ -24,7 +24,7 @@ from twin.campaign.log_results import META, point_arrays, results_from_log
 from twin.campaign.network_log import CAMERA_MODES
 from twin.campaign.records import CALIBRATION, POINT
 from twin.outputs import claim_folder, write_text_atomic
-from twin.record import read_log
+from twin.record import McapRecorder, read_log
 from twin.record.mcap_log import LogMessage
 from twin.report import write_report
 from twin.run.campaign_run import write_cameras
@@ -268,3 +268,70 @@ def refit(messages: list[LogMessage], model: str) -> list[LogMessage]:
         )
         out.append(dataclasses.replace(m, data=data))
     return out
+
+
+FOXGLOVE_OPTION = "--foxglove"
+
+
+def foxglove_log(
+    log: str | Path,
+    out: str | Path,
+    *,
+    scenario: Scenario | str | Path | None = None,
+    force: bool = False,
+    overwrite: bool = False,
+    warn: Callable[[str], None] | None = None,
+) -> dict[str, int]:
+    """Write ``out``: the records of ``log`` and the Foxglove channels a run writes today
+    (:mod:`twin.record.foxglove`), derived from them, for a log of any version.
+
+    The site, the route and the stations come from the run's scenario (``scenario``, or
+    the file the log names, as :func:`run_scenario_of` finds it); without one they are left
+    out, and ``warn`` says so, as it says what else the log lacks (a real run's or an older
+    log's: no truth, so no camera as built and no true instrument track).
+
+    Returns:
+        The Foxglove messages written, by topic.
+
+    Raises:
+        twin.outputs.OutputError: ``out`` cannot be written, is the log itself, or exists
+            (and not ``overwrite``); nothing is written.
+        ValueError: a log that holds no run. ScenarioMismatch: as :func:`run_scenario_of`.
+    """
+    from calib.io.atomic import atomic_file
+    from twin.output_files import OutputError, check_file_target
+    from twin.record.foxglove import FoxgloveStream
+    from twin.record.foxglove.stream import TRUTH_CAMERA, TRUTH_INSTRUMENT
+
+    say = warn or (lambda _: None)
+    out = check_file_target(Path(out), FOXGLOVE_OPTION)
+    if out.exists() and os.path.samefile(out, log):
+        raise OutputError(f"{FOXGLOVE_OPTION} {out}: is the log itself; name another file")
+    if out.exists() and not overwrite:
+        raise OutputError(
+            f"{FOXGLOVE_OPTION} {out}: exists; name a new file or pass --overwrite to replace it"
+        )
+    messages = read_log(log).messages
+    meta = next((m.data for m in messages if m.topic == META), None)
+    if meta is None:
+        raise ValueError(f"{log}: no run in this log (no {META} record)")
+    sc = None
+    try:
+        sc = run_scenario_of(meta, scenario, log, force=force, warn=warn)
+    except ScenarioMismatch:
+        raise
+    except ValueError as exc:
+        if scenario is not None:
+            raise
+        say(f"{exc}; the site, the route and the stations are left out of {out}")
+    topics = {m.topic for m in messages}
+    if TRUTH_CAMERA not in topics:
+        say(f"{log} holds no cameras as built (/truth/camera): only the calibrated ones are drawn")
+    if TRUTH_INSTRUMENT not in topics:
+        say(f"{log} holds no instrument truth (/truth/instrument): no true track is drawn")
+    stream = FoxgloveStream(sc)
+    with atomic_file(out) as tmp, McapRecorder(tmp, foxglove=stream) as recorder:
+        for m in messages:
+            recorder.record(m.topic, m.data, m.timestamp)
+        counts = recorder.foxglove_counts
+    return counts
