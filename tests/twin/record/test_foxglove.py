@@ -1,0 +1,288 @@
+"""Foxglove's channels in a run's log: Foxglove's schemas, read back with ``mcap`` and the
+SDK's protobuf schemas, drawing exactly what the records and results say; an older log
+converts with ``twin replay --foxglove``."""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from foxglove.messages import Pose
+from hypothesis import given
+from hypothesis import strategies as st
+from mcap.reader import make_reader
+from mcap.records import Schema
+from mcap_protobuf.decoder import DecoderFactory
+from scipy.spatial.transform import Rotation
+
+from calib.io.camera_files import camera_from_dict
+from twin.cli import main
+from twin.record import McapRecorder, read_log
+from twin.record.foxglove import TOPICS
+from twin.record.foxglove import scene as fox_scene
+from twin.record.foxglove.convert import quaternion, timestamp
+from twin.run.runner import run_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("fox")
+    results = run_scenario(SMOKE, out, fidelity="geometric", report=False, seed=5)
+    return out, results
+
+
+def foxglove(path: Path) -> dict[str, list[tuple[str, int, Any, bytes]]]:
+    """The Foxglove messages of a log by topic: (schema name, log time ns, decoded, raw)."""
+    factory = DecoderFactory()
+    out: dict[str, list] = defaultdict(list)
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            if channel.message_encoding != "protobuf":
+                continue
+            decoded = factory.decoder_for("protobuf", schema)(message.data)
+            out[channel.topic].append((schema.name, message.log_time, decoded, message.data))
+    return dict(out)
+
+
+def transforms(messages: dict, child: str) -> list[Any]:
+    """Every transform of ``child`` in the log's frame transforms."""
+    return [
+        tf
+        for _, _, m, _ in messages["/foxglove/tf"]
+        for tf in m.transforms
+        if tf.child_frame_id == child
+    ]
+
+
+def seconds(stamp: Any) -> float:
+    return (
+        stamp.sec + stamp.nanosec * 1e-9
+        if hasattr(stamp, "nanosec")
+        else stamp.ToNanoseconds() * 1e-9
+    )
+
+
+def decoded(message: Any) -> Any:
+    """A Foxglove message of the SDK as the protobuf message a reader decodes."""
+    schema = type(message).get_schema()
+    record = Schema(id=1, name=schema.name, encoding=schema.encoding, data=schema.data)
+    return DecoderFactory().decoder_for("protobuf", record)(message.encode())
+
+
+def xyz(v: Any) -> np.ndarray:
+    return np.array([v.x, v.y, v.z])
+
+
+def rotation(q: Any) -> np.ndarray:
+    return Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+
+
+def test_the_log_holds_foxglove_channels_with_their_schemas(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    assert set(messages) == set(TOPICS)  # the smoke run gives every channel
+    for topic, items in messages.items():
+        assert {name for name, *_ in items} == {TOPICS[topic]}
+    assert {e.id for _, _, m, _ in messages["/foxglove/scene/site"] for e in m.entities} == {
+        "floor",
+        "walls",
+        "obstacles",
+        "route",
+        "stations",
+    }
+    # The records read back as before: read_log leaves the Foxglove channels out.
+    assert not [t for t in read_log(out / "log.mcap").topics if t.startswith("/foxglove")]
+
+
+def test_a_calibrated_camera_frame_is_its_results_pose(run):
+    out, results = run
+    messages = foxglove(out / "log.mcap")
+    (tf,) = transforms(messages, "camera/cam1/visit1")
+    calibration = results["calibrations"][0]
+    position_m = np.asarray(calibration["parameters"]["position_mm"]) / 1000.0
+    assert tf.parent_frame_id == "W"
+    np.testing.assert_allclose(xyz(tf.translation), position_m, rtol=0, atol=1e-9)
+    # The frame is the camera's optical frame: its z axis is the optical axis, in W.
+    record = next(
+        m for m in read_log(out / "log.mcap").messages if m.topic == "/campaign/calibration"
+    )
+    camera = camera_from_dict(record.data["camera_model"])
+    np.testing.assert_allclose(rotation(tf.rotation), camera.world2cam_r.T, atol=1e-9)
+    (built,) = transforms(messages, "camera/cam1/built")
+    np.testing.assert_allclose(
+        xyz(built.translation), np.asarray(calibration["truth"]["position_mm"]) / 1e3, atol=1e-9
+    )
+
+
+def test_an_led_point_in_the_scene_is_its_point_record(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    points = [m for m in read_log(out / "log.mcap").messages if m.topic == "/campaign/point"]
+    entities = {}
+    for _, _, m, _ in messages["/foxglove/scene/points"]:
+        for e in m.entities:
+            entities.setdefault(e.id, e)  # as first drawn, when the point was taken
+    first, last = points[0].data, points[-1].data
+    for record, k in ((first, 0), (last, None)):
+        key = (record["camera"], record["visit"])
+        mine = [p for p in points if (p.data["camera"], p.data["visit"]) == key]
+        n = mine.index(next(p for p in mine if p.data is record)) if k is None else k
+        e = entities[f"{record['dataset']}/{record['camera']}/visit{record['visit']}/{n}"]
+        drawn = np.array([xyz(s.pose.position) for s in e.spheres])
+        np.testing.assert_allclose(drawn, np.asarray(record["leds_world"]), rtol=0, atol=1e-12)
+
+
+def test_the_points_of_a_visit_are_coloured_by_their_calibration_residual(run):
+    out, results = run
+    messages = foxglove(out / "log.mcap")
+    calibration = results["calibrations"][0]
+    residuals = []
+    for _, _, m, _ in messages["/foxglove/scene/points"]:
+        for e in m.entities:
+            meta = {kv.key: kv.value for kv in e.metadata}
+            if e.id.startswith("visit/cam1/visit1/") and "residuals_px" in meta:
+                residuals += [float(v) for v in meta["residuals_px"].split()]
+    expected = np.hypot(*np.asarray(calibration["residuals_px"]).T)
+    n = calibration["points"]
+    np.testing.assert_allclose(residuals[:n], expected, atol=1e-3)  # written to 1e-3 px
+
+
+def test_the_parents_frames_at_a_fix_are_its_truth_and_its_estimate(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    log = read_log(out / "log.mcap").messages
+    truths = [m.data for m in log if m.topic == "/truth/instrument"]
+    fixes = [m.data for m in log if m.topic == "/campaign/parent_fix"]
+    true_frames = transforms(messages, "instrument/truth")
+    estimates = transforms(messages, "instrument/estimate")
+    assert len(true_frames) == len(truths) >= 2
+    assert len(estimates) == len(fixes) >= 2
+    for tf, truth in zip(true_frames, truths, strict=True):
+        np.testing.assert_allclose(xyz(tf.translation), truth["translation"], rtol=0, atol=1e-12)
+        yaw = Rotation.from_matrix(rotation(tf.rotation)).as_euler("ZYX")[0]
+        assert yaw == pytest.approx(truth["yaw"], abs=1e-12)
+    for tf, fix in zip(estimates, fixes, strict=True):
+        np.testing.assert_allclose(xyz(tf.translation), fix["translation"], rtol=0, atol=1e-12)
+    # At the last fix, the covariance's ellipsoid: 3 sigma, magnified 100 times.
+    (_, _, update, _) = messages["/foxglove/scene/parent_covariance"][-1]
+    (sphere,) = update.entities[-1].spheres
+    cov = np.asarray(fixes[-1]["covariance"])[1:, 1:]
+    sigmas = np.sqrt(np.linalg.eigvalsh(cov))
+    np.testing.assert_allclose(
+        sorted(xyz(sphere.size)), sorted(2 * 3.0 * 100.0 * sigmas), rtol=1e-9
+    )
+    np.testing.assert_allclose(xyz(sphere.pose.position), fixes[-1]["translation"], atol=1e-12)
+
+
+def test_a_line_of_sight_is_as_long_as_its_shot(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    shots = [
+        m.data for m in read_log(out / "log.mcap").messages if m.topic == "/total_station/shot"
+    ]
+    lines = [
+        e.lines[0] for _, _, m, _ in messages["/foxglove/scene/lines_of_sight"] for e in m.entities
+    ]
+    assert len(lines) == len(shots)
+    for line, shot in zip(lines, shots, strict=True):
+        length = np.linalg.norm(xyz(line.points[1]) - xyz(line.points[0]))
+        assert length == pytest.approx(shot["distance"], abs=1e-9)
+
+
+def test_failures_and_events_are_foxglove_log_lines(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    log = read_log(out / "log.mcap").messages
+    failures = [m for m in log if m.topic == "/campaign/failure"]
+    lines = [m for _, _, m, _ in messages["/foxglove/log"] if m.name == "/campaign/failure"]
+    assert len(lines) == len(failures) > 0
+    assert lines[0].message.startswith(failures[0].data["kind"] + ":")
+    assert seconds(lines[0].timestamp) == pytest.approx(failures[0].timestamp, abs=1e-9)
+
+
+def test_a_replay_writes_the_runs_foxglove_messages(run, tmp_path):
+    out, _ = run
+    target = tmp_path / "fox.mcap"
+    assert main(["replay", str(out / "log.mcap"), "--foxglove", str(target)]) == 0
+    ran, replayed = foxglove(out / "log.mcap"), foxglove(target)
+    assert set(ran) == set(replayed)
+    for topic in ran:
+        assert [raw for *_, raw in ran[topic]] == [raw for *_, raw in replayed[topic]], topic
+    assert [m.data for m in read_log(target).messages] == [
+        m.data for m in read_log(out / "log.mcap").messages
+    ]
+
+
+def test_an_older_log_converts_and_what_it_lacks_is_said(run, tmp_path, capsys):
+    out, _ = run
+    old = tmp_path / "old.mcap"
+    # As an older version wrote it: no Foxglove channels, no truth, no scenario digest.
+    with McapRecorder(old) as recorder:
+        for m in read_log(out / "log.mcap").messages:
+            if m.topic.startswith("/truth/"):
+                continue
+            data = m.data
+            if m.topic == "/run/meta":
+                data = {
+                    k: v for k, v in data.items() if k not in ("scenario_digest", "scenario_path")
+                }
+            recorder.record(m.topic, data, m.timestamp)
+    assert not foxglove(old)
+    target = tmp_path / "converted.mcap"
+    code = main(["replay", str(old), "--foxglove", str(target), "--scenario", str(SMOKE)])
+    said = capsys.readouterr().out
+    assert code == 0
+    assert "no cameras as built (/truth/camera)" in said
+    assert "no instrument truth" in said
+    messages = foxglove(target)
+    assert "/foxglove/track/instrument_truth" not in messages
+    assert transforms(messages, "camera/cam1/visit1")
+    assert not transforms(messages, "camera/cam1/built")
+    assert "/foxglove/scene/site" in messages
+
+
+def test_bad_foxglove_targets_are_named(run, tmp_path, capsys):
+    out, _ = run
+    log = out / "log.mcap"
+    for target, expected in (
+        (tmp_path, "is a folder"),
+        (log, "is the log itself"),
+        (SMOKE, "exists; name a new file or pass --overwrite"),
+    ):
+        before = sorted(tmp_path.iterdir())
+        assert main(["replay", str(log), "--foxglove", str(target)]) == 2
+        said = capsys.readouterr().out
+        assert f"--foxglove {target}" in said
+        assert expected in said
+        assert sorted(tmp_path.iterdir()) == before
+
+
+@given(st.floats(min_value=0.0, max_value=1e9, allow_nan=False))
+def test_a_timestamp_is_the_records_in_ns(t):
+    stamp = timestamp(t)
+    assert 0 <= stamp.nsec < 1_000_000_000
+    assert stamp.sec * 1_000_000_000 + stamp.nsec == round(t * 1e9)
+
+
+@given(st.lists(st.floats(-math.pi, math.pi), min_size=3, max_size=3))
+def test_a_quaternion_is_its_rotation(angles):
+    r = Rotation.from_euler("xyz", angles).as_matrix()
+    q = decoded(Pose(orientation=quaternion(r))).orientation
+    assert math.isclose(q.x**2 + q.y**2 + q.z**2 + q.w**2, 1.0, rel_tol=1e-12)
+    np.testing.assert_allclose(rotation(q), r, atol=1e-12)
+
+
+def test_a_covariance_that_is_not_positive_draws_no_ellipsoid():
+    assert fox_scene.ellipsoid_entity(0.0, "fix0", np.zeros(3), np.zeros((3, 3))) is None
+    assert fox_scene.ellipsoid_entity(0.0, "fix0", np.zeros(3), np.full((3, 3), np.nan)) is None
+    drawn = fox_scene.ellipsoid_entity(0.0, "fix1", np.ones(3), np.diag([1e-6, 4e-6, 9e-6]))
+    assert drawn is not None
+    e = decoded(drawn)
+    np.testing.assert_allclose(sorted(xyz(e.spheres[0].size)), [0.6, 1.2, 1.8], rtol=1e-12)
