@@ -1,0 +1,103 @@
+"""What the Foxglove channels cost: ``twin run`` of the hall at the geometric fidelity with
+and without them, in pairs (their order alternating), the median over the pairs.
+
+Run: ``.venv/bin/python benchmarks/bench_foxglove.py [--pairs N] [--fidelity F]
+[--scenario FILE]``
+
+Reports each run's wall time and log size, the medians and the ratio, checks that both
+runs of a pair give the same calibrations, and lists the Foxglove channels of the last
+run's log with their message counts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+from mcap.reader import make_reader
+from rich.console import Console
+from rich.table import Table
+
+import twin.sim  # noqa: F401  # isort: skip
+import twin.run.campaign_run as campaign_run
+from twin.run.runner import run_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+HALL = ROOT / "scenarios" / "paper_hall.toml"
+
+
+def one_run(scenario: Path, fidelity: str, foxglove: bool, folder: Path) -> tuple[float, int, dict]:
+    """Wall time, s, log size, bytes, and results of one run (with or without the channels)."""
+    real = campaign_run.FoxgloveStream
+    if not foxglove:
+        campaign_run.FoxgloveStream = lambda sc: None  # type: ignore[assignment,misc]
+    try:
+        t0 = time.perf_counter()
+        results = run_scenario(scenario, folder, fidelity=fidelity, report=False)
+        wall = time.perf_counter() - t0
+    finally:
+        campaign_run.FoxgloveStream = real  # type: ignore[misc]
+    return wall, (folder / "log.mcap").stat().st_size, results
+
+
+def channel_counts(log: Path) -> Counter:
+    """Messages by (topic, schema) of the Foxglove channels of a log."""
+    counts: Counter = Counter()
+    with open(log, "rb") as f:
+        for schema, channel, _ in make_reader(f).iter_messages():
+            if channel.message_encoding == "protobuf":
+                counts[channel.topic, schema.name] += 1
+    return counts
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--pairs", type=int, default=5)
+    parser.add_argument("--fidelity", default="geometric")
+    parser.add_argument("--scenario", type=Path, default=HALL)
+    args = parser.parse_args()
+    console = Console()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(args.pairs):
+            order = (True, False) if k % 2 == 0 else (False, True)
+            pair = {}
+            for on in order:
+                folder = Path(tmp) / f"{k}-{'on' if on else 'off'}"
+                pair[on] = one_run(args.scenario, args.fidelity, on, folder)
+            same = pair[True][2]["calibrations"] == pair[False][2]["calibrations"]
+            rows.append((pair[True][:2], pair[False][:2], same))
+            console.print(f"pair {k}: {pair[True][:2]} {pair[False][:2]} same results: {same}")
+        counts = channel_counts(Path(tmp) / f"{args.pairs - 1}-on" / "log.mcap")
+    table = Table(title=f"{args.scenario.name}, {args.fidelity}: with and without Foxglove")
+    for column in ("pair", "with, s", "without, s", "with, MB", "without, MB", "same results"):
+        table.add_column(column)
+    for k, ((w_on, s_on), (w_off, s_off), same) in enumerate(rows):
+        table.add_row(
+            str(k),
+            f"{w_on:.2f}",
+            f"{w_off:.2f}",
+            f"{s_on / 1e6:.2f}",
+            f"{s_off / 1e6:.2f}",
+            str(same),
+        )
+    on = statistics.median(r[0][0] for r in rows)
+    off = statistics.median(r[1][0] for r in rows)
+    table.add_row("median", f"{on:.2f}", f"{off:.2f}", "", "", "")
+    console.print(table)
+    console.print(f"wall time with / without: {on / off:.3f}")
+    channels = Table(title="Foxglove channels of the log")
+    channels.add_column("topic")
+    channels.add_column("schema")
+    channels.add_column("messages")
+    for (topic, schema), n in sorted(counts.items()):
+        channels.add_row(topic, schema, str(n))
+    console.print(channels)
+
+
+if __name__ == "__main__":
+    main()
