@@ -29,6 +29,7 @@ from twin.hal.recording import Recorder
 from twin.hal.rig import Rig
 from twin.outputs import claim_folder, write_text_atomic
 from twin.record import McapRecorder
+from twin.record.foxglove import FoxgloveStream
 from twin.run.check_results import check_results
 from twin.run.run_cameras import camera_identity, latest_cameras
 from twin.scenario import Scenario
@@ -113,7 +114,7 @@ def run_check(
         "min_pixel_sigma_px": sigma,
     }
     started = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-    with McapRecorder(out / "log.mcap") as log:
+    with McapRecorder(out / "log.mcap", foxglove=FoxgloveStream(sc)) as log:
         log.record(META, {**header, "command": "check", "started": started}, 0.0)
         tap = _TruthTap(log)
         devices, close = open_rig(tap)

@@ -21,10 +21,13 @@ from scipy.spatial.transform import Rotation
 
 from calib.io.camera_files import camera_from_dict
 from twin.cli import main
+from twin.instruments.polar import polar2cartesian
+from twin.instruments.tilt import level_points
 from twin.record import McapRecorder, read_log
 from twin.record.foxglove import TOPICS
 from twin.record.foxglove import scene as fox_scene
 from twin.record.foxglove.convert import quaternion, timestamp
+from twin.record.foxglove.stream import _levelled
 from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -286,3 +289,16 @@ def test_a_covariance_that_is_not_positive_draws_no_ellipsoid():
     assert drawn is not None
     e = decoded(drawn)
     np.testing.assert_allclose(sorted(xyz(e.spheres[0].size)), [0.6, 1.2, 1.8], rtol=1e-12)
+
+
+@given(
+    st.floats(0.5, 2000.0),
+    st.floats(0.0, 2 * math.pi),
+    st.floats(0.0, math.pi),
+    st.floats(-0.02, 0.02),
+    st.floats(-0.02, 0.02),
+)
+def test_a_shot_is_drawn_where_the_instrument_levels_it(d, hz, v, roll, pitch):
+    drawn = np.array(_levelled(d, hz, v, roll, pitch))
+    expected = level_points(polar2cartesian([d, hz, v]), roll, pitch)
+    np.testing.assert_allclose(drawn, expected, rtol=0, atol=1e-12 * d)

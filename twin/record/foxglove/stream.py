@@ -7,6 +7,7 @@ values), so a run and a replay of its log give the same messages.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -14,8 +15,6 @@ import numpy as np
 from foxglove.messages import Log, LogLevel, Pose, PosesInFrame
 
 from calib.io.camera_files import camera_from_dict
-from twin.instruments.polar import polar2cartesian
-from twin.instruments.tilt import level_points
 from twin.record.foxglove import frames, scene
 from twin.record.foxglove.convert import timestamp, vector3, yaw_quaternion
 
@@ -186,12 +185,11 @@ class FoxgloveStream:
         polar = [data.get(k) for k in ("distance", "horizontal", "zenith")]
         if not all(isinstance(v, int | float) for v in polar):
             return []
-        point = polar2cartesian(np.asarray(polar, dtype=float))
         tilt = data.get("tilt") or {}
         roll, pitch = tilt.get("roll"), tilt.get("pitch")
-        if isinstance(roll, int | float) and isinstance(pitch, int | float):
-            point = level_points(point, roll, pitch)
-        return self._sight(t, point, failed=False)
+        if not (isinstance(roll, int | float) and isinstance(pitch, int | float)):
+            roll = pitch = 0.0
+        return self._sight(t, _levelled(*polar, roll, pitch), failed=False)
 
     def _shot_failure(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         out = self._log(topic, data, t)
@@ -200,10 +198,13 @@ class FoxgloveStream:
             out += self._sight(t, np.asarray(aim, dtype=float), failed=True)
         return out
 
-    def _sight(self, t: float, point_level: np.ndarray, *, failed: bool) -> list[Message]:
+    def _sight(self, t: float, point_level: Any, *, failed: bool) -> list[Message]:
+        """The line of sight to ``point_level`` (3,) m, in the instrument's levelled frame
+        as the latest fix placed it."""
         xyz, yaw = self._instrument
-        c, s = np.cos(yaw), np.sin(yaw)
-        world = xyz + np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ point_level
+        c, s = math.cos(yaw), math.sin(yaw)
+        x, y, z = (float(v) for v in point_level)
+        world = (xyz[0] + c * x - s * y, xyz[1] + s * x + c * y, xyz[2] + z)
         id_ = f"shot{self._count('shot')}"
         return [(SCENE_SIGHTS, scene.update([scene.sight_entity(t, id_, xyz, world, failed)]))]
 
@@ -238,6 +239,23 @@ class FoxgloveStream:
 def _yaw_pose(xyz: np.ndarray, yaw: float) -> Pose:
     """A pose at ``xyz`` (3,) m turned ``yaw`` rad about z."""
     return Pose(position=vector3(xyz), orientation=yaw_quaternion(yaw))
+
+
+def _levelled(
+    distance: float, horizontal: float, zenith: float, roll: float, pitch: float
+) -> tuple[float, float, float]:
+    """A shot (m, rad: :mod:`twin.instruments.polar`) as a point of the levelled frame, m,
+    with the tilt (rad) it was read with (:func:`twin.instruments.tilt.level_points`;
+    written out here: a shot is drawn on every measurement, and arrays of 3 are slow)."""
+    sv = math.sin(zenith)
+    x, y = distance * sv * math.cos(horizontal), distance * sv * math.sin(horizontal)
+    z = distance * math.cos(zenith)
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    return (
+        cp * x + sp * sr * y + sp * cr * z,
+        cr * y - sr * z,
+        -sp * x + cp * sr * y + cp * cr * z,
+    )
 
 
 def _nan(value: Any) -> Any:
