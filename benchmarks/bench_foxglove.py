@@ -1,8 +1,8 @@
 """What the Foxglove channels cost: ``twin run`` of the hall at the geometric fidelity with
 and without them, in pairs (their order alternating), the median over the pairs.
 
-Run: ``.venv/bin/python benchmarks/bench_foxglove.py [--pairs N] [--fidelity F]
-[--scenario FILE]``
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_foxglove.py [--pairs N]
+[--fidelity F] [--scenario FILE]``
 
 Reports each run's wall time and log size, the medians and the ratio, checks that both
 runs of a pair give the same calibrations, and lists the Foxglove channels of the last
@@ -30,18 +30,21 @@ ROOT = Path(__file__).resolve().parents[1]
 HALL = ROOT / "scenarios" / "paper_hall.toml"
 
 
-def one_run(scenario: Path, fidelity: str, foxglove: bool, folder: Path) -> tuple[float, int, dict]:
-    """Wall time, s, log size, bytes, and results of one run (with or without the channels)."""
+def one_run(
+    scenario: Path, fidelity: str, foxglove: bool, folder: Path
+) -> tuple[float, int, dict, float]:
+    """Wall time, s, log size, bytes, results and CPU time of this process, s, of one run
+    (with or without the channels)."""
     real = campaign_run.FoxgloveStream
     if not foxglove:
         campaign_run.FoxgloveStream = lambda sc: None  # type: ignore[assignment,misc]
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         results = run_scenario(scenario, folder, fidelity=fidelity, report=False)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         campaign_run.FoxgloveStream = real  # type: ignore[misc]
-    return wall, (folder / "log.mcap").stat().st_size, results
+    return wall, (folder / "log.mcap").stat().st_size, results, cpu
 
 
 def channel_counts(log: Path) -> Counter:
@@ -70,13 +73,15 @@ def main() -> None:
                 folder = Path(tmp) / f"{k}-{'on' if on else 'off'}"
                 pair[on] = one_run(args.scenario, args.fidelity, on, folder)
             same = pair[True][2]["calibrations"] == pair[False][2]["calibrations"]
-            rows.append((pair[True][:2], pair[False][:2], same))
-            console.print(f"pair {k}: {pair[True][:2]} {pair[False][:2]} same results: {same}")
+            rows.append((pair[True][:2], pair[False][:2], same, pair[True][3], pair[False][3]))
+            walls = f"{pair[True][0]:.2f} s / {pair[False][0]:.2f} s"
+            console.print(f"pair {k}: with / without {walls}; same results: {same}")
         counts = channel_counts(Path(tmp) / f"{args.pairs - 1}-on" / "log.mcap")
     table = Table(title=f"{args.scenario.name}, {args.fidelity}: with and without Foxglove")
-    for column in ("pair", "with, s", "without, s", "with, MB", "without, MB", "same results"):
+    columns = ("pair", "with, s", "without, s", "with, MB", "without, MB", "same results")
+    for column in (*columns, "with, CPU s", "without, CPU s"):
         table.add_column(column)
-    for k, ((w_on, s_on), (w_off, s_off), same) in enumerate(rows):
+    for k, ((w_on, s_on), (w_off, s_off), same, c_on, c_off) in enumerate(rows):
         table.add_row(
             str(k),
             f"{w_on:.2f}",
@@ -84,12 +89,18 @@ def main() -> None:
             f"{s_on / 1e6:.2f}",
             f"{s_off / 1e6:.2f}",
             str(same),
+            f"{c_on:.2f}",
+            f"{c_off:.2f}",
         )
     on = statistics.median(r[0][0] for r in rows)
     off = statistics.median(r[1][0] for r in rows)
-    table.add_row("median", f"{on:.2f}", f"{off:.2f}", "", "", "")
+    cpu_on = statistics.median(r[3] for r in rows)
+    cpu_off = statistics.median(r[4] for r in rows)
+    table.add_row(
+        "median", f"{on:.2f}", f"{off:.2f}", "", "", "", f"{cpu_on:.2f}", f"{cpu_off:.2f}"
+    )
     console.print(table)
-    console.print(f"wall time with / without: {on / off:.3f}")
+    console.print(f"wall time with / without: {on / off:.3f}; CPU time: {cpu_on / cpu_off:.3f}")
     channels = Table(title="Foxglove channels of the log")
     channels.add_column("topic")
     channels.add_column("schema")

@@ -24,7 +24,7 @@ from twin.cli import main
 from twin.instruments.polar import polar2cartesian
 from twin.instruments.tilt import level_points
 from twin.record import McapRecorder, read_log
-from twin.record.foxglove import TOPICS
+from twin.record.foxglove import TOPICS, FoxgloveStream
 from twin.record.foxglove import scene as fox_scene
 from twin.record.foxglove.convert import quaternion, timestamp
 from twin.record.foxglove.stream import _levelled
@@ -302,3 +302,20 @@ def test_a_shot_is_drawn_where_the_instrument_levels_it(d, hz, v, roll, pitch):
     drawn = np.array(_levelled(d, hz, v, roll, pitch))
     expected = level_points(polar2cartesian([d, hz, v]), roll, pitch)
     np.testing.assert_allclose(drawn, expected, rtol=0, atol=1e-12 * d)
+
+
+def test_a_record_that_cannot_be_drawn_is_logged_and_kept(tmp_path):
+    path = tmp_path / "log.mcap"
+    with McapRecorder(path, foxglove=FoxgloveStream()) as recorder:
+        recorder.record("/campaign/parent_fix", {"index": 3, "translation": [0, 0, 0]}, 2.0)
+        recorder.record("/truth/instrument", {"translation": [1.0, 2.0, 0.0], "yaw": 0.5}, 3.0)
+    assert [m.topic for m in read_log(path).messages] == [
+        "/campaign/parent_fix",
+        "/truth/instrument",
+    ]
+    messages = foxglove(path)
+    (line,) = [m for _, _, m, _ in messages["/foxglove/log"]]
+    assert "cannot draw the record on /campaign/parent_fix: KeyError" in line.message
+    assert line.level == 4  # ERROR
+    (tf,) = transforms(messages, "instrument/truth")  # the next record is drawn
+    np.testing.assert_allclose(xyz(tf.translation), [1.0, 2.0, 0.0])
