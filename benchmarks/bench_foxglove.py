@@ -1,8 +1,8 @@
 """What the Foxglove channels cost: ``twin run`` of the hall at the geometric fidelity with
 and without them, in pairs (their order alternating), the median over the pairs.
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_foxglove.py [--pairs N]
-[--fidelity F] [--scenario FILE]``
+Run: ``.venv/bin/python benchmarks/bench_foxglove.py [--pairs N] [--fidelity F]
+[--scenario FILE]``
 
 Reports each run's wall time and log size, the medians and the ratio, checks that both
 runs of a pair give the same calibrations, and lists the Foxglove channels of the last
