@@ -9,6 +9,9 @@ a log has it, to compare the estimates with the truth. A real run's log has none
 - :data:`TRUTH_INSTRUMENT`: ``{"timestamp", "translation", "yaw"}``, the total station's
   true centre in W, m, and heading, rad, at the start and whenever the parent's pose
   estimate is set from a fix.
+- :data:`TRUTH_ROBOT`: ``{"robot", "timestamp", "translation", "rotation"}``, a robot's
+  base body in W: its origin, m, and its (3, 3) body-to-W rotation, at the start and after
+  each of its drives.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from numpy.typing import NDArray
 
 TRUTH_CAMERA = "/truth/camera"
 TRUTH_INSTRUMENT = "/truth/instrument"
+TRUTH_ROBOT = "/truth/robot"
 
 
 def instrument_truth(

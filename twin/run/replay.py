@@ -288,7 +288,8 @@ def foxglove_log(
     The site, the route and the stations come from the run's scenario (``scenario``, or
     the file the log names, as :func:`run_scenario_of` finds it); without one they are left
     out, and ``warn`` says so, as it says what else the log lacks (a real run's or an older
-    log's: no truth, so no camera as built and no true instrument track).
+    log's: no truth, so no camera as built, no true instrument track and no robots' true
+    frames).
 
     Returns:
         The Foxglove messages written, by topic.
@@ -301,7 +302,7 @@ def foxglove_log(
     from calib.io.atomic import atomic_file
     from twin.output_files import OutputError, check_file_target
     from twin.record.foxglove import FoxgloveStream
-    from twin.record.foxglove.stream import TRUTH_CAMERA, TRUTH_INSTRUMENT
+    from twin.record.foxglove.stream import TRUTH_CAMERA, TRUTH_INSTRUMENT, TRUTH_ROBOT
 
     say = warn or (lambda _: None)
     out = check_file_target(Path(out), FOXGLOVE_OPTION)
@@ -329,6 +330,8 @@ def foxglove_log(
         say(f"{log} holds no cameras as built (/truth/camera): only the calibrated ones are drawn")
     if TRUTH_INSTRUMENT not in topics:
         say(f"{log} holds no instrument truth (/truth/instrument): no true track is drawn")
+    if TRUTH_ROBOT not in topics:
+        say(f"{log} holds no robots' true poses (/truth/robot): only their estimates are drawn")
     stream = FoxgloveStream(sc)
     with atomic_file(out) as tmp, McapRecorder(tmp, foxglove=stream) as recorder:
         for m in messages:

@@ -244,6 +244,7 @@ def test_an_older_log_converts_and_what_it_lacks_is_said(run, tmp_path, capsys):
     assert code == 0
     assert "no cameras as built (/truth/camera)" in said
     assert "no instrument truth" in said
+    assert "no robots' true poses (/truth/robot)" in said
     messages = foxglove(target)
     assert "/foxglove/track/instrument_truth" not in messages
     assert transforms(messages, "camera/cam1/visit1")
@@ -319,3 +320,21 @@ def test_a_record_that_cannot_be_drawn_is_logged_and_kept(tmp_path):
     assert line.level == 4  # ERROR
     (tf,) = transforms(messages, "instrument/truth")  # the next record is drawn
     np.testing.assert_allclose(xyz(tf.translation), [1.0, 2.0, 0.0])
+
+
+def test_each_robot_has_its_true_and_estimated_frames(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    log = read_log(out / "log.mcap").messages
+    truths = [m.data for m in log if m.topic == "/truth/robot" and m.data["robot"] == "child1"]
+    frames = transforms(messages, "child1/truth")
+    assert len(frames) == len(truths) >= 2
+    for tf, truth in zip(frames, truths, strict=True):
+        np.testing.assert_allclose(xyz(tf.translation), truth["translation"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rotation(tf.rotation), truth["rotation"], atol=1e-9)
+    placed = [m for m in log if m.topic == "/base/child1/set_pose"][-1]
+    estimate = [tf for tf in transforms(messages, "child1/estimate")][-1]
+    np.testing.assert_allclose(
+        xyz(estimate.translation), [placed.data["x"], placed.data["y"], -0.40], atol=1e-12
+    )
+    assert transforms(messages, "parent/estimate")

@@ -5,7 +5,8 @@ Frame ids (:func:`robot_frame`, :func:`camera_frame`):
 - ``W``, the world frame (the parent's instrument frame at its first station); ``map``
   (W's parent, where the site came from a map: W's pose in the map's frame).
 - ``ROBOT/estimate``: each robot's base as its localisation knows it (its odometry, drive
-  results and the poses the campaign sets), on the floor.
+  results and the poses the campaign sets), on the floor; ``ROBOT/truth``: its base body
+  where it truly is (the twin's truth, at the start and after each drive).
 - ``instrument/estimate``: the total station's centre and heading as the campaign fixed it
   (each CPS fix); ``instrument/truth``: the same in the twin's truth (a simulated run).
 - ``camera/NAME/built``: the camera as built (the twin's truth; a real run's log has
@@ -31,9 +32,10 @@ INSTRUMENT_ESTIMATE = "instrument/estimate"
 INSTRUMENT_TRUTH = "instrument/truth"
 
 
-def robot_frame(robot: str) -> str:
-    """The frame of a robot's base as its localisation knows it."""
-    return f"{robot}/estimate"
+def robot_frame(robot: str, which: str = "estimate") -> str:
+    """The frame of a robot's base: ``estimate`` (as its localisation knows it) or
+    ``truth``."""
+    return f"{robot}/{which}"
 
 
 def camera_frame(camera: str, which: str) -> str:

@@ -46,6 +46,7 @@ TOPICS: Mapping[str, str] = {
 META = "/run/meta"
 TRUTH_CAMERA = "/truth/camera"
 TRUTH_INSTRUMENT = "/truth/instrument"
+TRUTH_ROBOT = "/truth/robot"
 PARENT_FIX = "/campaign/parent_fix"
 POINT = "/campaign/point"
 CALIBRATION = "/campaign/calibration"
@@ -147,6 +148,12 @@ class FoxgloveStream:
         self._truth_track.append(_yaw_pose(xyz, yaw))
         tf = frames.transforms([frames.transform(t, frames.INSTRUMENT_TRUTH, xyz, yaw)])
         return [(TF, tf), (TRACK_TRUTH, self._poses(t, self._truth_track))]
+
+    def _truth_robot(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        frame = frames.robot_frame(str(data["robot"]), "truth")
+        rotation = np.asarray(data["rotation"], dtype=float).reshape(3, 3)
+        tf = frames.transform(t, frame, data["translation"], rotation)
+        return [(TF, frames.transforms([tf]))]
 
     def _parent_fix(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         xyz, yaw = np.asarray(data["translation"], dtype=float), float(data["yaw"])
@@ -270,6 +277,7 @@ def _nan(value: Any) -> Any:
 _HANDLERS = {
     TRUTH_CAMERA: FoxgloveStream._truth_camera,
     TRUTH_INSTRUMENT: FoxgloveStream._truth_instrument,
+    TRUTH_ROBOT: FoxgloveStream._truth_robot,
     PARENT_FIX: FoxgloveStream._parent_fix,
     CALIBRATION: FoxgloveStream._calibration,
     POINT: FoxgloveStream._point,

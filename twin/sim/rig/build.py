@@ -18,7 +18,7 @@ from twin.sim.rig.frames import WorldFrame
 from twin.sim.rig.leds import GeometricLedSensor, RenderLedSensor, SimCamera, SimLeds
 from twin.sim.rig.shot_noise import ShotNoise
 from twin.sim.rig.total_station import SimTotalStation
-from twin.sim.rig.truth import TruthWitness, WitnessedParent
+from twin.sim.rig.truth import TruthWitness, WitnessedBase, WitnessedParent
 from twin.sim.world import World
 from twin.timing import timed
 
@@ -181,6 +181,9 @@ def build_sim_rig(
         witness = TruthWitness(truth, world, frame, clock, parent)
         witness.cameras()
         witness.instrument()
+        for name in bases:
+            witness.robot(name)
+            bases[name] = WitnessedBase(bases[name], witness)
         bases[parent] = WitnessedParent(bases[parent], witness)
     rig = Rig(
         clock=clock,
