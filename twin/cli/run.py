@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich import box
 from rich.console import Console
@@ -17,6 +18,9 @@ from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED, interruption_reason
+
+if TYPE_CHECKING:
+    from twin.record.foxglove.live import LiveServer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -72,6 +76,22 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="skip the figures and report.md (default: write them)",
     )
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="serve the log's Foxglove channels over Foxglove's WebSocket protocol while the "
+        "campaign runs (open ws://HOST:PORT in Foxglove); the results and the log are the "
+        "same without it. The server stops with the run",
+    )
+    p.add_argument(
+        "--port",
+        type=arguments.number_in(int, 0, 65535, why="a TCP port; 0 picks a free one"),
+        help="the --live server's port (default: 8765)",
+    )
+    p.add_argument(
+        "--host",
+        help="the address the --live server listens on (default: 127.0.0.1, this machine only)",
+    )
     p.set_defaults(func=run)
 
 
@@ -94,6 +114,9 @@ def run(args: argparse.Namespace) -> int:
         if refused:
             console.print(f"[red]error:[/red] {', '.join(refused)} apply to the twin, not to --rig")
             return 2
+    if not args.live and (args.port is not None or args.host is not None):
+        console.print("[red]error:[/red] --port and --host apply to --live only")
+        return 2
     fidelity = args.fidelity or "render"
     where = "rig" if args.rig is not None else fidelity
     out = args.out or Path("out") / f"{sc.name}-{where}"
@@ -101,10 +124,13 @@ def run(args: argparse.Namespace) -> int:
     console.print(
         f"running [bold]{sc.name}[/bold] {how} with the {strategy.name} strategy into {out}"
     )
+    server = _start_live(args, console) if args.live else None
+    if args.live and server is None:
+        return 2
     try:
         with Live(console=console, refresh_per_second=4, transient=True) as live:
             if args.rig is not None:
-                results = _run_on_rig(args, sc, out, strategy, LiveStatus(live), console)
+                results = _run_on_rig(args, sc, out, strategy, LiveStatus(live), console, server)
                 if results is None:
                     return 2
             else:
@@ -120,12 +146,20 @@ def run(args: argparse.Namespace) -> int:
                     report=not args.no_report,
                     strategy=strategy,
                     overwrite=args.overwrite,
+                    live=server,
                 )
     except KeyboardInterrupt as exc:
         log = out / "log.mcap"
         kept = f"the log of the run so far is {log}" if log.exists() else "nothing was written"
         console.print(f"interrupted ({interruption_reason(exc)}): {kept}; no results were computed")
         return EXIT_INTERRUPTED
+    finally:
+        if server is not None:
+            server.close()
+            console.print(
+                f"live: {server.sent} Foxglove messages served, {server.dropped} dropped "
+                "(the queue was full); server stopped"
+            )
     print_results(results, console)
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")
@@ -147,6 +181,21 @@ def print_dropped(dropped: list[dict], visits: int, console: Console) -> None:
         console.print(f"  {d['camera']} visit {d['visit']}: {escape(why)}")
 
 
+def _start_live(args: argparse.Namespace, console: Console) -> LiveServer | None:
+    """The ``--live`` server, started; None (and the error shown) when it cannot listen."""
+    from twin.record.foxglove.live import DEFAULT_HOST, DEFAULT_PORT, LiveServer
+
+    host = args.host or DEFAULT_HOST
+    port = DEFAULT_PORT if args.port is None else args.port
+    try:
+        server = LiveServer(host, port)
+    except OSError as exc:
+        console.print(f"[red]error:[/red] --port {port} (--host {host}): {escape(str(exc))}")
+        return None
+    console.print(f"serving the run live to Foxglove on ws://{host}:{server.port}")
+    return server
+
+
 def _run_on_rig(
     args: argparse.Namespace,
     sc: object,
@@ -154,6 +203,7 @@ def _run_on_rig(
     strategy: Strategy,
     display: LiveStatus,
     console: Console,
+    server: LiveServer | None,
 ) -> dict | None:
     """The campaign on the rig file's devices; None (and the error shown) for a bad rig file
     or a device that cannot be opened."""
@@ -170,6 +220,7 @@ def _run_on_rig(
             report=not args.no_report,
             strategy=strategy,
             overwrite=args.overwrite,
+            live=server,
         )
     except RigFileError as exc:
         console.print(str(exc), markup=False)

@@ -18,7 +18,7 @@ import json
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +40,9 @@ from twin.report.reading import planned_visits
 from twin.run.run_cameras import camera_identity
 from twin.scenario import Scenario
 
+if TYPE_CHECKING:
+    from twin.record.foxglove.live import LiveServer
+
 RigOpener = Callable[[McapRecorder], tuple[Rig, Callable[[], None], dict[str, float]]]
 """Given the run's log, opens the devices; returns them, what closes them, and the
 backend's timings by activity (filled as it runs)."""
@@ -56,6 +59,8 @@ def run_campaign(
     report: bool,
     overwrite: bool,
     cameras: bool = True,
+    *,
+    live: LiveServer | None = None,
 ) -> dict[str, Any]:
     """Run the campaign on the rig ``open_rig`` gives, log it, and write its outputs.
 
@@ -67,15 +72,18 @@ def run_campaign(
         open_rig: given the log, opens the devices and returns them, what closes them, and
             the backend's timings (filled as it runs). The devices are closed (robots
             stopped) however the campaign ends, Ctrl-C included; the log keeps what came.
-        strategy: the campaign's strategy. progress, report, overwrite, cameras: as
-            :func:`twin.run.runner.run_scenario`.
+        strategy: the campaign's strategy. progress, report, overwrite, cameras, live:
+            as :func:`twin.run.runner.run_scenario`.
     """
     folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
     with folder:  # held until the run ends, however it ends
         out = folder.path
         log_path = out / "log.mcap"
         t0 = time.perf_counter()
-        with McapRecorder(log_path, foxglove=FoxgloveStream(sc)) as log:
+        stream = FoxgloveStream(sc)
+        if live is not None and stream is not None:
+            stream = live.tee(stream)
+        with McapRecorder(log_path, foxglove=stream) as log:
             log.record(
                 META,
                 {

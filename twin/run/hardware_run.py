@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from twin.campaign import Progress
 from twin.campaign.check import DEFAULT_FALSE_ALARM_RATE, DEFAULT_STOPS, MIN_PIXEL_SIGMA
@@ -30,6 +30,9 @@ from twin.scenario import Scenario, load_scenario
 from twin.scenario.errors import ScenarioIssue
 from twin.truth import TRUTH_CAMERA
 
+if TYPE_CHECKING:
+    from twin.record.foxglove.live import LiveServer
+
 DEVICE = "/rig/device"
 """Topic of what each device said about itself when it was opened (name, serial number,
 battery, resolution...), one record per device at the start of a run."""
@@ -44,12 +47,14 @@ def run_on_rig(
     report: bool = True,
     strategy: Strategy | str | None = None,
     overwrite: bool = False,
+    live: LiveServer | None = None,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` on the devices of ``rig_file``.
 
     Args:
         scenario: a scenario or its file. rig_file: a rig file or its path.
-        out_dir, progress, report, strategy, overwrite: as :func:`twin.run.runner.run_scenario`.
+        out_dir, progress, report, strategy, overwrite, live: as
+            :func:`twin.run.runner.run_scenario`.
 
     Returns:
         The results (also in ``results.json``).
@@ -77,7 +82,9 @@ def run_on_rig(
         return devices, close, devices.timings
 
     meta = {"fidelity": "hardware", "rig": rig.source or rig.name, "seed": sc.seed}
-    return run_campaign(sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite)
+    return run_campaign(
+        sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite, live=live
+    )
 
 
 def check_on_rig(

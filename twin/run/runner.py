@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +40,9 @@ from twin.scenario.schema import Noise
 from twin.sim.rig import FIDELITIES, SimRig, build_sim_rig
 from twin.sim.world import build_world
 
+if TYPE_CHECKING:
+    from twin.record.foxglove.live import LiveServer
+
 
 def run_scenario(
     scenario: Scenario | str | Path,
@@ -55,6 +58,7 @@ def run_scenario(
     adapt_rig: Callable[[SimRig], Rig] | None = None,
     overwrite: bool = False,
     cameras: bool = True,
+    live: LiveServer | None = None,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
 
@@ -81,6 +85,8 @@ def run_scenario(
         overwrite: replace what an earlier run wrote in ``out_dir``.
         cameras: write ``cameras/`` (a Monte-Carlo trial, which reads only the results and
             the log, does not).
+        live: also serve the log's Foxglove channels on this server as they are written
+            (the log and the results are the same without it).
 
     Returns:
         The results (also in ``results.json``).
@@ -118,7 +124,17 @@ def run_scenario(
 
     meta = {"fidelity": fidelity, "seed": sc.seed, "noise": noise}
     return run_campaign(
-        sc, out_dir, arguments, meta, open_rig, chosen, progress, report, overwrite, cameras
+        sc,
+        out_dir,
+        arguments,
+        meta,
+        open_rig,
+        chosen,
+        progress,
+        report,
+        overwrite,
+        cameras,
+        live=live,
     )
 
 
