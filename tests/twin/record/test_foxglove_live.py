@@ -214,7 +214,8 @@ def test_a_port_in_use_is_named_and_nothing_is_written(tmp_path, capsys):
         code = main([*args, "--live", "--port", str(taken.port)])
     assert code == 2
     said = capsys.readouterr().out
-    assert f"--port {taken.port}" in said and "in use" in said
+    assert f"--port {taken.port}" in said
+    assert "in use" in said
     assert not out.exists()
 
 
