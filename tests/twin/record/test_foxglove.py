@@ -338,3 +338,54 @@ def test_each_robot_has_its_true_and_estimated_frames(run):
         xyz(estimate.translation), [placed.data["x"], placed.data["y"], -0.40], atol=1e-12
     )
     assert transforms(messages, "parent/estimate")
+
+
+def layout_topics(node: Any) -> tuple[set[str], set[str], set[str]]:
+    """What a layout names: topics, message paths (of plots) and frames."""
+    topics: set[str] = set()
+    paths: set[str] = set()
+    frames: set[str] = set()
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key == "topics":
+                topics |= set(value)
+            elif key == "topicToRender":
+                topics.add(value)
+            elif key == "value" and isinstance(value, str):
+                paths.add(value)
+            elif key in ("followTf", "fixedFrame"):
+                frames.add(value)
+            more = layout_topics(value)
+            topics, paths, frames = topics | more[0], paths | more[1], frames | more[2]
+    elif isinstance(node, list):
+        for value in node:
+            more = layout_topics(value)
+            topics, paths, frames = topics | more[0], paths | more[1], frames | more[2]
+    return topics, paths, frames
+
+
+def test_the_shipped_layout_names_only_what_a_log_holds(run):
+    import json
+    import re
+
+    from twin.record.foxglove.layout import layout_json
+
+    text = (ROOT / "docs" / "foxglove-layout.json").read_text()
+    assert text == layout_json()  # the shipped file is the layout's code
+    layout = json.loads(text)
+    topics, paths, frame_ids = layout_topics(layout)
+    out, _ = run
+    fox = foxglove(out / "log.mcap")
+    records = read_log(out / "log.mcap")
+    assert topics
+    assert topics <= set(fox) | set(records.topics)
+    assert len(paths) == 4
+    for path in paths:
+        topic, rest = re.fullmatch(r"(/[^.]+)\.(.+)", path).groups()
+        data = next(m.data for m in records.messages if m.topic == topic)
+        for part in re.findall(r"\w+|\[\d+\]", rest):  # every field and index resolves
+            data = data[int(part[1:-1])] if part.startswith("[") else data[part]
+        assert isinstance(data, float)
+    children = {tf.child_frame_id for _, _, m, _ in fox["/foxglove/tf"] for tf in m.transforms}
+    parents = {tf.parent_frame_id for _, _, m, _ in fox["/foxglove/tf"] for tf in m.transforms}
+    assert frame_ids <= children | parents
