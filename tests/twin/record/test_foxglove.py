@@ -389,3 +389,29 @@ def test_the_shipped_layout_names_only_what_a_log_holds(run):
     children = {tf.child_frame_id for _, _, m, _ in fox["/foxglove/tf"] for tf in m.transforms}
     parents = {tf.parent_frame_id for _, _, m, _ in fox["/foxglove/tf"] for tf in m.transforms}
     assert frame_ids <= children | parents
+
+
+def test_the_headless_scene_is_what_the_scene_updates_say(run, tmp_path, capsys):
+    from twin.record.foxglove import figure
+
+    out, results = run
+    drawn = figure.read_scene(out / "log.mcap")
+    frustums = [s for s in drawn.segments if not s[2] and len(s[0]) == 16]
+    built = [m for m in read_log(out / "log.mcap").messages if m.topic == "/truth/camera"]
+    assert len(frustums) == len(built) + len(results["calibrations"])
+    led = np.array(
+        next(m.data for m in read_log(out / "log.mcap").messages if m.topic == "/campaign/point")[
+            "leds_world"
+        ][0]
+    )
+    centres = np.array([p for p, size, _ in drawn.spheres if size[0] == fox_scene.LED_SIZE_M])
+    assert np.min(np.linalg.norm(centres - led, axis=1)) < 1e-9
+    png = tmp_path / "scene.png"
+    assert figure.main([str(out / "log.mcap"), str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    empty = tmp_path / "empty.mcap"
+    with McapRecorder(empty):
+        pass
+    assert figure.main([str(empty), str(tmp_path / "none.png")]) == 2
+    assert f"{empty}: the log has no foxglove.SceneUpdate" in capsys.readouterr().err
+    assert not (tmp_path / "none.png").exists()
