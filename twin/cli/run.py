@@ -18,6 +18,7 @@ from twin.cli import arguments
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED, interruption_reason
+from twin.outputs import OutputError, check_file_target
 
 if TYPE_CHECKING:
     from twin.record.foxglove.live import LiveServer
@@ -92,6 +93,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--host",
         help="the address the --live server listens on (default: 127.0.0.1, this machine only)",
     )
+    p.add_argument(
+        "--video",
+        type=Path,
+        metavar="FILE.mp4",
+        help="after the run, render a video of it from its log: a camera above the site "
+        "following the group, the route and the cameras' frustums (as built green, as "
+        "calibrated blue) drawn; in the twin only",
+    )
+    p.add_argument(
+        "--video-period",
+        type=arguments.number_in(float, 0.0, exclusive=True, unit="s"),
+        metavar="S",
+        help="seconds of campaign time per frame of --video (default: 1 s, or longer so "
+        "that the video lasts at most 2 minutes at 10 frames per second)",
+    )
     p.set_defaults(func=run)
 
 
@@ -117,6 +133,18 @@ def run(args: argparse.Namespace) -> int:
     if not args.live and (args.port is not None or args.host is not None):
         console.print("[red]error:[/red] --port and --host apply to --live only")
         return 2
+    if args.video_period is not None and args.video is None:
+        console.print("[red]error:[/red] --video-period applies to --video only")
+        return 2
+    if args.video is not None:
+        if args.rig is not None:
+            console.print("[red]error:[/red] --video applies to the twin, not to --rig")
+            return 2
+        check_file_target(args.video, "--video")
+        if args.video.suffix.lower() != ".mp4":
+            raise OutputError(
+                f"--video {args.video}: the video is written as MP4; give a .mp4 file"
+            )
     fidelity = args.fidelity or "render"
     where = "rig" if args.rig is not None else fidelity
     out = args.out or Path("out") / f"{sc.name}-{where}"
@@ -161,6 +189,8 @@ def run(args: argparse.Namespace) -> int:
                 "(the queue was full); server stopped"
             )
     print_results(results, console)
+    if args.video is not None:
+        _write_video(args, sc, out / "log.mcap", console)
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")
     from twin.run.campaign_run import dropped_visits
@@ -179,6 +209,26 @@ def print_dropped(dropped: list[dict], visits: int, console: Console) -> None:
     for d in dropped:
         why = f"{d['reason']}: {d['message']}" if d["message"] else d["reason"]
         console.print(f"  {d['camera']} visit {d['visit']}: {escape(why)}")
+
+
+def _write_video(args: argparse.Namespace, sc: object, log: Path, console: Console) -> None:
+    """``--video``: the run's video, rendered from its log with a progress bar."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from calib.io.atomic import atomic_file
+    from twin.run.video import render_video
+
+    if args.seed is not None:
+        sc = sc.model_copy(update={"seed": args.seed})  # type: ignore[attr-defined]
+    columns = ("rendering the video", BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=console, transient=True) as bar, atomic_file(args.video) as tmp:
+        task = bar.add_task("video", total=None)
+
+        def advance(done: int, frames: int) -> None:
+            bar.update(task, completed=done, total=frames)
+
+        frames = render_video(sc, log, tmp, period=args.video_period, progress=advance)  # type: ignore[arg-type]
+    console.print(f"video: {args.video} ({frames} frames)")
 
 
 def _start_live(args: argparse.Namespace, console: Console) -> LiveServer | None:

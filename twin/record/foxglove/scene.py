@@ -133,18 +133,8 @@ def frustum_entity(
     """A camera's view frustum (a calib camera): lines from its optical centre through the
     image's corners, to the floor ``floor_z`` (m) within :data:`FRUSTUM_DEPTH_M`, and the
     far rectangle; with the camera's name as text."""
-    w, h = camera.image_size
-    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
-    origins, directions = camera.unproject(corners)
-    c0 = origins[0]
-    lo, hi = FRUSTUM_DEPTH_M
-    down = -directions[:, 2]
-    depth = np.where(down > 1e-6, (c0[2] - floor_z) / np.maximum(down, 1e-6), hi)
-    depth = float(np.clip(np.min(depth), lo, hi))
-    far = c0 + depth * directions
-    pts: list[NDArray] = []
-    for k in range(4):
-        pts += [c0, far[k], far[k], far[(k + 1) % 4]]
+    pts = frustum_points(camera, floor_z)
+    c0 = pts[0]
     line = LinePrimitive(
         type=LinePrimitiveLineType.LineList,
         pose=pose((0.0, 0.0, 0.0)),
@@ -162,6 +152,25 @@ def frustum_entity(
         text=id_.split("/", 1)[-1],
     )
     return entity(t, id_, metadata, lines=[line], texts=[label])
+
+
+def frustum_points(camera: Any, floor_z: float) -> NDArray[np.float64]:
+    """A camera's view frustum as (16, 3) m, pairs of points (a line list): its optical
+    centre to each far corner, and the far rectangle, which reaches the floor ``floor_z``
+    (m) within :data:`FRUSTUM_DEPTH_M`."""
+    w, h = camera.image_size
+    corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+    origins, directions = camera.unproject(corners)
+    c0 = origins[0]
+    lo, hi = FRUSTUM_DEPTH_M
+    down = -directions[:, 2]
+    depth = np.where(down > 1e-6, (c0[2] - floor_z) / np.maximum(down, 1e-6), hi)
+    depth = float(np.clip(np.min(depth), lo, hi))
+    far = c0 + depth * directions
+    pts: list[NDArray] = []
+    for k in range(4):
+        pts += [c0, far[k], far[k], far[(k + 1) % 4]]
+    return np.array(pts)
 
 
 def points_entity(
