@@ -35,8 +35,8 @@ MIN_PERIOD_S = 1.0
 """The shortest default period, s of campaign time per frame."""
 SIZE = (640, 360)
 """Width and height of a frame, px."""
-VIEW_DISTANCE_M = 14.0
-VIEW_ELEVATION_DEG = -55.0
+VIEW_DISTANCE_M = 20.0
+VIEW_ELEVATION_DEG = -75.0
 VIEW_AZIMUTH_DEG = 90.0
 LINE_WIDTH_PX = 3.0
 ROUTE = (0.2, 0.5, 1.0, 1.0)
