@@ -5,13 +5,17 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.table import Table
 
-from twin.cli import arguments
+from twin.cli import arguments, live_server
 from twin.cli.scene import load_or_report
 from twin.outputs import check_file_target
+
+if TYPE_CHECKING:
+    from twin.record.foxglove.live import LiveServer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -67,6 +71,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="RIG.toml",
         help="rig file to write (TOML; YAML for .yaml), and RIG.truth.json beside it",
     )
+    live_server.add_live(
+        p,
+        "the emulated world's truth (the robots' and the instrument's true poses, the "
+        "cameras as built, the site) as Foxglove's channels while it runs",
+    )
     p.set_defaults(func=run)
 
 
@@ -84,15 +93,28 @@ def time_scale(text: str) -> float:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until stopped; exit code 0, 2 for bad input."""
-    from twin.emulators.emulation import start_emulation, truth_file
+    from twin.emulators.emulation import truth_file
 
     console = Console(highlight=False, soft_wrap=True)
     # Both files are checked before the work; a file the reader refuses is refused then.
     check_file_target(args.rig_out, "--rig-out")
     check_file_target(truth_file(args.rig_out), "--rig-out's truth file")
     sc = load_or_report(args.scenario, console)
-    if sc is None:
+    if sc is None or live_server.refused(args, console):
         return 2
+    server = live_server.start_live(args, console) if args.live else None
+    if args.live and server is None:
+        return 2
+    try:
+        return _serve(args, sc, server, console)
+    finally:
+        if server is not None:
+            live_server.stop_live(server, console)
+
+
+def _serve(args: argparse.Namespace, sc: Any, live: LiveServer | None, console: Console) -> int:
+    """Start the emulators and serve until stopped (or ``--duration``)."""
+    from twin.emulators.emulation import start_emulation
 
     try:
         emulation = start_emulation(
@@ -119,11 +141,43 @@ def run(args: argparse.Namespace) -> int:
             table.add_row(name, "MJPEG over HTTP", server.url)
         console.print(table)
         console.print(f"rig file: {rig}  (stop with Ctrl-C)")
+        witness = _live_witness(emulation, live) if live is not None else None
         start = time.monotonic()
         try:
             while args.duration is None or time.monotonic() - start < args.duration:
+                if witness is not None:
+                    with emulation.lock:
+                        for name in emulation.robots:
+                            witness.robot(name)
+                        witness.instrument()
                 time.sleep(0.2)
         except KeyboardInterrupt:
             pass
     console.print("emulators stopped")
     return 0
+
+
+class _WorldTime:
+    """The emulated world's clock (simulated seconds)."""
+
+    def __init__(self, world: Any) -> None:
+        self.world = world
+
+    def now(self) -> float:
+        return self.world.time
+
+
+def _live_witness(emulation: Any, server: LiveServer) -> Any:
+    """The world's truth, drawn and served live: the cameras as built now, the robots and
+    the instrument as the caller asks (every 0.2 s)."""
+    from twin.record.foxglove import FoxgloveStream
+    from twin.record.foxglove.live import LiveRecorder
+    from twin.sim.rig.truth import TruthWitness
+
+    sc, sim = emulation.scenario, emulation.sim
+    recorder = LiveRecorder(server, FoxgloveStream(sc))
+    clock = _WorldTime(sim.world)
+    witness = TruthWitness(recorder, sim.world, sim.frame, clock, sc.robots.parent.name)
+    with emulation.lock:
+        witness.cameras()
+    return witness

@@ -14,7 +14,7 @@ from rich.table import Table
 
 from twin.campaign.strategies import strategy_for
 from twin.campaign.strategy import Strategy
-from twin.cli import arguments
+from twin.cli import arguments, live_server
 from twin.cli.live_status import LiveStatus
 from twin.cli.scene import load_or_report
 from twin.interruption import EXIT_INTERRUPTED, interruption_reason
@@ -77,21 +77,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="skip the figures and report.md (default: write them)",
     )
-    p.add_argument(
-        "--live",
-        action="store_true",
-        help="serve the log's Foxglove channels over Foxglove's WebSocket protocol while the "
-        "campaign runs (open ws://HOST:PORT in Foxglove); the results and the log are the "
-        "same without it. The server stops with the run",
-    )
-    p.add_argument(
-        "--port",
-        type=arguments.number_in(int, 0, 65535, why="a TCP port; 0 picks a free one"),
-        help="the --live server's port (default: 8765)",
-    )
-    p.add_argument(
-        "--host",
-        help="the address the --live server listens on (default: 127.0.0.1, this machine only)",
+    live_server.add_live(
+        p,
+        "the log's Foxglove channels while the campaign runs (the results and the log are "
+        "the same without it)",
     )
     p.add_argument(
         "--video",
@@ -130,8 +119,7 @@ def run(args: argparse.Namespace) -> int:
         if refused:
             console.print(f"[red]error:[/red] {', '.join(refused)} apply to the twin, not to --rig")
             return 2
-    if not args.live and (args.port is not None or args.host is not None):
-        console.print("[red]error:[/red] --port and --host apply to --live only")
+    if live_server.refused(args, console):
         return 2
     if args.video_period is not None and args.video is None:
         console.print("[red]error:[/red] --video-period applies to --video only")
@@ -152,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     console.print(
         f"running [bold]{sc.name}[/bold] {how} with the {strategy.name} strategy into {out}"
     )
-    server = _start_live(args, console) if args.live else None
+    server = live_server.start_live(args, console) if args.live else None
     if args.live and server is None:
         return 2
     try:
@@ -183,11 +171,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     finally:
         if server is not None:
-            server.close()
-            console.print(
-                f"live: {server.sent} Foxglove messages served, {server.dropped} dropped "
-                "(the queue was full); server stopped"
-            )
+            live_server.stop_live(server, console)
     print_results(results, console)
     if args.video is not None:
         _write_video(args, sc, out / "log.mcap", console)
@@ -229,21 +213,6 @@ def _write_video(args: argparse.Namespace, sc: object, log: Path, console: Conso
 
         frames = render_video(sc, log, tmp, period=args.video_period, progress=advance)  # type: ignore[arg-type]
     console.print(f"video: {args.video} ({frames} frames)")
-
-
-def _start_live(args: argparse.Namespace, console: Console) -> LiveServer | None:
-    """The ``--live`` server, started; None (and the error shown) when it cannot listen."""
-    from twin.record.foxglove.live import DEFAULT_HOST, DEFAULT_PORT, LiveServer
-
-    host = args.host or DEFAULT_HOST
-    port = DEFAULT_PORT if args.port is None else args.port
-    try:
-        server = LiveServer(host, port)
-    except OSError as exc:
-        console.print(f"[red]error:[/red] --port {port} (--host {host}): {escape(str(exc))}")
-        return None
-    console.print(f"serving the run live to Foxglove on ws://{host}:{server.port}")
-    return server
 
 
 def _run_on_rig(

@@ -225,3 +225,19 @@ def test_port_without_live_is_refused(tmp_path, capsys):
     assert code == 2
     assert "--port and --host apply to --live only" in capsys.readouterr().out
     assert not out.exists()
+
+
+def test_emulate_serves_the_worlds_truth_live_and_stops(tmp_path):
+    port = free_port()
+    client = Client(port)
+    client.start()
+    rig = tmp_path / "rig.toml"
+    args = ["emulate", str(SMOKE), "--duration", "3", "--rig-out", str(rig)]
+    assert main([*args, "--live", "--port", str(port)]) == 0
+    client.join(timeout=30)
+    assert {ch["topic"] for ch in client.advertised.values()} == set(TOPICS)
+    tf = [data for _, data in client.received["/foxglove/tf"]]
+    for robot in ("parent", "child1", "child2"):
+        assert sum(f"{robot}/truth".encode() in data for data in tf) >= 3, robot
+    assert any(b"instrument/truth" in data for data in tf)
+    assert refused(port)

@@ -150,3 +150,23 @@ def _channel(topic: str, schema_name: str, context: foxglove.Context) -> foxglov
         message_encoding="protobuf",
         context=context,
     )
+
+
+class LiveRecorder:
+    """A :class:`~twin.hal.recording.Recorder` whose records are drawn by a
+    :class:`FoxgloveStream` and served by a :class:`LiveServer` (not logged): what
+    ``twin emulate --live`` shows of the emulated world's truth."""
+
+    def __init__(self, server: LiveServer, stream: FoxgloveStream) -> None:
+        self.server = server
+        self.stream = stream
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        from twin.record.codec import encode
+
+        t = float(timestamp)
+        try:
+            messages = self.stream.feed(topic, encode(record), t)
+        except (ValueError, KeyError, TypeError, IndexError) as exc:
+            messages = self.stream.unreadable(topic, t, exc)
+        self.server.offer(messages, t)
