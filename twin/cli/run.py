@@ -173,8 +173,8 @@ def run(args: argparse.Namespace) -> int:
         if server is not None:
             live_server.stop_live(server, console)
     print_results(results, console)
-    if args.video is not None:
-        _write_video(args, sc, out / "log.mcap", console)
+    if args.video is not None and not _write_video(args, sc, out / "log.mcap", console):
+        return 1
     if not args.no_report:
         console.print(f"report: {out / 'report.md'}")
     from twin.run.campaign_run import dropped_visits
@@ -195,8 +195,9 @@ def print_dropped(dropped: list[dict], visits: int, console: Console) -> None:
         console.print(f"  {d['camera']} visit {d['visit']}: {escape(why)}")
 
 
-def _write_video(args: argparse.Namespace, sc: object, log: Path, console: Console) -> None:
-    """``--video``: the run's video, rendered from its log with a progress bar."""
+def _write_video(args: argparse.Namespace, sc: object, log: Path, console: Console) -> bool:
+    """``--video``: the run's video, rendered from its log with a progress bar; False (and
+    why said) when it cannot be rendered or written (the run's outputs stay)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
     from calib.io.atomic import atomic_file
@@ -204,15 +205,25 @@ def _write_video(args: argparse.Namespace, sc: object, log: Path, console: Conso
 
     if args.seed is not None:
         sc = sc.model_copy(update={"seed": args.seed})  # type: ignore[attr-defined]
+    from twin.sim.gl import RenderBackendError
+
     columns = ("rendering the video", BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-    with Progress(*columns, console=console, transient=True) as bar, atomic_file(args.video) as tmp:
-        task = bar.add_task("video", total=None)
+    try:
+        with (
+            Progress(*columns, console=console, transient=True) as bar,
+            atomic_file(args.video) as tmp,
+        ):
+            task = bar.add_task("video", total=None)
 
-        def advance(done: int, frames: int) -> None:
-            bar.update(task, completed=done, total=frames)
+            def advance(done: int, frames: int) -> None:
+                bar.update(task, completed=done, total=frames)
 
-        frames = render_video(sc, log, tmp, period=args.video_period, progress=advance)  # type: ignore[arg-type]
+            frames = render_video(sc, log, tmp, period=args.video_period, progress=advance)  # type: ignore[arg-type]
+    except (RenderBackendError, OSError) as exc:
+        console.print(f"[red]error:[/red] --video {args.video}: {escape(str(exc))}")
+        return False
     console.print(f"video: {args.video} ({frames} frames)")
+    return True
 
 
 def _run_on_rig(

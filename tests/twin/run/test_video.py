@@ -86,3 +86,23 @@ def test_bad_video_options_are_named_and_nothing_is_written(tmp_path, capsys, ex
     assert not out.exists()
     assert not list(tmp_path.glob("*.mp4"))
     assert not list(tmp_path.glob("*.avi"))
+
+
+def test_a_video_that_cannot_be_rendered_is_named_and_not_left(tmp_path, monkeypatch, capsys):
+    import argparse
+
+    from rich.console import Console
+
+    from twin.cli import run as run_cli
+    from twin.sim.gl import RenderBackendError
+
+    def fails(sc, log, out, **kwargs):
+        Path(out).write_bytes(b"half a video")
+        raise RenderBackendError("cannot render offscreen (MUJOCO_GL=egl): no display")
+
+    monkeypatch.setattr(video, "render_video", fails)
+    mp4 = tmp_path / "v.mp4"
+    args = argparse.Namespace(video=mp4, video_period=None, seed=None)
+    assert not run_cli._write_video(args, object(), tmp_path / "log.mcap", Console(soft_wrap=True))
+    assert f"--video {mp4}: cannot render offscreen" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []
