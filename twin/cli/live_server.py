@@ -20,8 +20,8 @@ def add_live(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument(
         "--live",
         action="store_true",
-        help=f"serve {what} over Foxglove's WebSocket protocol (open ws://HOST:PORT in "
-        "Foxglove); the server stops with the command",
+        help=f"serve over Foxglove's WebSocket protocol {what}; open ws://HOST:PORT in "
+        "Foxglove. The server stops with the command",
     )
     parser.add_argument(
         "--port",

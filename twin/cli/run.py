@@ -80,7 +80,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     live_server.add_live(
         p,
         "the log's Foxglove channels while the campaign runs (the results and the log are "
-        "the same without it)",
+        "the same without the server)",
     )
     p.add_argument(
         "--video",
