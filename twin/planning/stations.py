@@ -240,6 +240,11 @@ data stops must hold (:func:`stops_reached`)."""
 CHILD_KEEP = PARENT_BODY + CHILD_BODY + ROBOT_MARGIN
 """How far a child's centre keeps from the standing parent's, m (as its drives do)."""
 
+STATION_SLACK = 0.1
+"""How far the parent may stand from its planned station, m, as :func:`stops_reached`
+allows for it (its CPS error on arrival, a few centimetres across the way after a few
+legs): a passage beside the station narrower than this does not let the children pass."""
+
 
 def stops_reached(
     child_free: BaseGeometry, station_xy: NDArray[np.float64], stops_xy: NDArray[np.float64]
@@ -248,14 +253,15 @@ def stops_reached(
     ``stops_xy`` (W, m) while it stands at ``station_xy``.
 
     ``child_free`` (W) is where a child's centre may be. Near the station and less
-    :data:`CHILD_KEEP` round the parent, it falls into pieces where the parent stands in
-    a passage (a corridor, a door's mouth); the children may arrive on any piece the
+    :data:`CHILD_KEEP` round the parent (and :data:`STATION_SLACK`: the parent stands
+    where it arrives, not on the plan's point), it falls into pieces where the parent
+    stands in a passage (a corridor, a door's mouth); the children may arrive on any piece the
     circle :data:`ARRIVAL` round the parent crosses. The pieces that hold the stops must
     hold :data:`ARRIVAL_SHARE` of that circle: the parent must not stand between the
     floor the children come from and the view. True where no stop lies near it."""
     station = Point(np.asarray(station_xy, dtype=float).reshape(2))
     near = child_free.intersection(station.buffer(NEAR_STATION))
-    near = near.difference(station.buffer(CHILD_KEEP))
+    near = near.difference(station.buffer(CHILD_KEEP + STATION_SLACK))
     pieces = [g for g in getattr(near, "geoms", [near]) if g.area > 0]
     stops = np.asarray(stops_xy, dtype=float).reshape(-1, 2)
     if len(pieces) < 2 or not len(stops):

@@ -8,7 +8,17 @@ import numpy as np
 import pytest
 import shapely
 
-from twin.planning.stations import COARSE_FROM, GRID, _candidates, _keys, _scored, stops_reached
+from twin.campaign.plan.ways import WAY_CLEARANCE
+from twin.planning.floor_shapes import corridor_turn
+from twin.planning.stations import (
+    COARSE_FROM,
+    GRID,
+    STATION_SLACK,
+    _candidates,
+    _keys,
+    _scored,
+    stops_reached,
+)
 
 
 @pytest.mark.parametrize("peak", [(3.2, -1.7), (-4.6, 5.1), (0.0, 9.5)])
@@ -69,3 +79,24 @@ def test_a_parent_in_a_passages_mouth_cuts_the_children_off_the_stops_beyond(
     station, stops, reached
 ):
     assert stops_reached(ROOM, np.array(station), stops) is reached
+
+
+HAIRPIN = corridor_turn(2.4, 180).buffer(-WAY_CLEARANCE)
+"""Where a child's centre may be in a 2.4 m corridor that turns back on itself (its first
+leg along +x, centred on y = 0)."""
+
+BEHIND = np.column_stack([np.linspace(0.5, 2.5, 5), np.linspace(-0.6, 0.6, 5)])
+"""Data stops in the first leg, behind a parent standing at x = 4 m."""
+
+
+@pytest.mark.parametrize("across", [0.0, 0.04, -0.04])
+def test_a_parent_near_a_corridors_middle_closes_it_to_the_children(across):
+    # Beside a parent on the middle line, 2.4 m of corridor leave a child a few centimetres
+    # of way: the parent arriving that far off its station closes it.
+    assert STATION_SLACK > 0.04
+    assert not stops_reached(HAIRPIN, np.array([4.0, across]), BEHIND)
+
+
+@pytest.mark.parametrize("across", [-0.6, 0.6])
+def test_a_parent_beside_a_corridors_wall_leaves_the_children_a_way(across):
+    assert stops_reached(HAIRPIN, np.array([4.0, across]), BEHIND)
