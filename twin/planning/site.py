@@ -235,6 +235,19 @@ def plan_site(
         pose = MapPose(
             *automatic_start(floor, parent_free, lead_in(first, second, parent_free)), 0.0
         )
+        # The start known: a station whose data stops lie on its side of a passage the
+        # standing parent closes leaves the children, ahead of it, cut off: chosen again.
+        home = np.array([pose.x, pose.y])
+        cut = [
+            c
+            for c in in_map
+            if not _gives_data_from(cameras, c, in_map[c].xy, boxed, child_free, floor_z, home)
+        ]
+        if cut:
+            again, _ = _stations(
+                cameras, cut, MapPose(), boxed, station_free, child_free, floor_z, avoid, home
+            )
+            in_map = {**in_map, **again}
         stations = {
             k: dataclasses.replace(
                 st, xy=pose.map2world(st.xy), view_centre=pose.map2world(st.view_centre)
@@ -247,7 +260,7 @@ def plan_site(
         moved = {**again, **moved}
     else:
         stations, hidden = _stations(
-            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid
+            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid, np.zeros(2)
         )
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
     partial = {c: st.visible for c, st in stations.items() if st.visible < STATION_NEED}
@@ -347,6 +360,7 @@ def _stations(
     child_free: BaseGeometry,
     floor_z: float,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
+    start: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, Station], dict[str, str]]:
     """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
     (``station_free[0]``) where one there sees :data:`STATION_NEED`, else on the floor the
@@ -354,7 +368,8 @@ def _stations(
     where it sees :data:`STATION_FLOOR`; away from the camera's places in ``avoid`` (map
     frame; ``boxed``: the map's blocked floor in that W); one from which the children
     reach the data stops past the standing parent (:func:`stops_reached` on
-    ``child_free``, map frame, where a child's centre may be). Returns the stations by camera
+    ``child_free``, map frame, where a child's centre may be; from the side of ``start``,
+    the parent's start in that W, where it is known). Returns the stations by camera
     name, and the cameras with none, each with why (the best fraction found and where)."""
     space = _space(boxed, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
@@ -380,7 +395,8 @@ def _stations(
             )
             if not stops:
                 return 0
-            return REACHED if stops_reached(child_w, xy, [s.stop.xy for s in stops]) else 1
+            reached = stops_reached(child_w, xy, [s.stop.xy for s in stops], start)
+            return REACHED if reached else 1
 
         # The roomy floor first, then all the parent reaches; where no station sees
         # STATION_NEED, the best of those that see STATION_FLOOR.
@@ -422,6 +438,32 @@ def _stations(
                 f"{y:.2f}); is the camera placed and aimed as in the map's frame?"
             )
     return out, hidden
+
+
+def _gives_data_from(
+    cameras: Sequence[Mapping[str, Any]],
+    name: str,
+    station: NDArray[np.float64],
+    boxed: BoxedSpace,
+    child_free: BaseGeometry,
+    floor_z: float,
+    start: NDArray[np.float64],
+) -> bool:
+    """Whether the children, coming with the parent from ``start``, reach camera ``name``'s
+    data stops from ``station`` (:func:`stops_reached`; all in the map's frame)."""
+    by_name = {str(c["name"]): c for c in cameras}
+    camera = validate_model(CameraConfig, camera_in_world(by_name[name], MapPose(), floor_z)).tsai()
+    ts = Noise().total_station
+    stops = partial_view_stops(
+        _space(boxed, floor_z),
+        MarkerConfig().assembly(),
+        (ts.range_min, ts.range_max),
+        camera,
+        station,
+        floor_z + INSTRUMENT_HEIGHT,
+        None,
+    )
+    return not stops or stops_reached(child_free, station, [s.stop.xy for s in stops], start)
 
 
 def _avoided(

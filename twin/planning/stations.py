@@ -247,7 +247,10 @@ legs): a passage beside the station narrower than this does not let the children
 
 
 def stops_reached(
-    child_free: BaseGeometry, station_xy: NDArray[np.float64], stops_xy: NDArray[np.float64]
+    child_free: BaseGeometry,
+    station_xy: NDArray[np.float64],
+    stops_xy: NDArray[np.float64],
+    start_xy: NDArray[np.float64] | None = None,
 ) -> bool:
     """Whether the children, arriving with the parent, reach the data stops (N, 2)
     ``stops_xy`` (W, m) while it stands at ``station_xy``.
@@ -258,7 +261,12 @@ def stops_reached(
     stands in a passage (a corridor, a door's mouth); the children may arrive on any piece the
     circle :data:`ARRIVAL` round the parent crosses. The pieces that hold the stops must
     hold :data:`ARRIVAL_SHARE` of that circle: the parent must not stand between the
-    floor the children come from and the view. True where no stop lies near it."""
+    floor the children come from and the view. True where no stop lies near it.
+
+    Where the start is known (``start_xy``, W), the group comes from its side and the
+    children stand ahead of the parent: :data:`ARRIVAL_SHARE` of the stops near it must
+    lie on pieces away from the floor that joins the start (``child_free`` less the
+    parent's circle), whatever their share of the circle."""
     station = Point(np.asarray(station_xy, dtype=float).reshape(2))
     near = child_free.intersection(station.buffer(NEAR_STATION))
     near = near.difference(station.buffer(CHILD_KEEP + STATION_SLACK))
@@ -269,9 +277,28 @@ def stops_reached(
     ring = station.buffer(ARRIVAL).exterior
     arrive = np.array([g.intersection(ring).length for g in pieces])
     held = np.array([shapely.contains_xy(g, stops[:, 0], stops[:, 1]).any() for g in pieces])
-    if not held.any() or arrive.sum() <= 0.0:
+    if not held.any():
+        return True
+    if start_xy is not None:
+        home = _start_side(child_free, station, Point(np.asarray(start_xy, float).reshape(2)))
+        if home is not None:
+            inside = np.array([shapely.contains_xy(g, stops[:, 0], stops[:, 1]) for g in pieces])
+            away = [not home.intersects(g.representative_point()) for g in pieces]
+            return bool(inside[away].sum() >= ARRIVAL_SHARE * inside.sum())
+    if arrive.sum() <= 0.0:
         return True
     return bool(arrive[held].sum() >= ARRIVAL_SHARE * arrive.sum())
+
+
+def _start_side(child_free: BaseGeometry, station: Point, start: Point) -> BaseGeometry | None:
+    """The piece of ``child_free`` less the parent's circle at ``station`` that holds
+    ``start`` (the nearest where the circle covers it); None where the circle does not cut
+    the floor into pieces."""
+    rest = child_free.difference(station.buffer(CHILD_KEEP + STATION_SLACK))
+    pieces = [g for g in getattr(rest, "geoms", [rest]) if g.area > 0]
+    if len(pieces) < 2:
+        return None
+    return min(pieces, key=start.distance)
 
 
 def _candidates(reachable: BaseGeometry, centre: NDArray, grid: float) -> NDArray[np.float64]:

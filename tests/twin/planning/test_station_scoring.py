@@ -100,3 +100,39 @@ def test_a_parent_near_a_corridors_middle_closes_it_to_the_children(across):
 @pytest.mark.parametrize("across", [-0.6, 0.6])
 def test_a_parent_beside_a_corridors_wall_leaves_the_children_a_way(across):
     assert stops_reached(HAIRPIN, np.array([4.0, across]), BEHIND)
+
+
+CORRIDOR = corridor_turn(2.0, 45).buffer(-WAY_CLEARANCE)
+"""Where a child's centre may be in a 2 m corridor along +x that turns 45 degrees at
+x = 12 m: a parent anywhere in it closes it."""
+
+NEARER = np.column_stack([np.linspace(1.0, 2.8, 4), np.linspace(-0.5, 0.5, 4)])
+FARTHER = np.column_stack([np.linspace(5.2, 8.0, 4), np.linspace(-0.5, 0.5, 4)])
+"""Data stops in the corridor before and beyond a parent standing at x = 4 m."""
+
+
+@pytest.mark.parametrize(
+    ("start", "stops", "reached"),
+    [
+        # The group comes from the corridor's end: the children, ahead of the parent,
+        # stand beyond it, with the stops there and not with those behind it.
+        ((-0.5, 0.0), FARTHER, True),
+        ((-0.5, 0.0), NEARER, False),
+        # Most of them beyond it: those do.
+        ((-0.5, 0.0), np.vstack([FARTHER, FARTHER + 0.2, NEARER[-1:]]), True),
+        # From beyond the turn the other way round, though the start is far from the
+        # station.
+        ((16.0, 4.0), NEARER, True),
+        ((16.0, 4.0), FARTHER, False),
+    ],
+)
+def test_a_parent_closing_a_corridor_leaves_the_children_the_stops_away_from_the_start(
+    start, stops, reached
+):
+    assert stops_reached(CORRIDOR, np.array([4.0, 0.0]), stops, np.array(start)) is reached
+
+
+@pytest.mark.parametrize("stops", [NEARER, FARTHER])
+def test_without_a_start_the_children_may_arrive_on_either_side_of_a_closed_corridor(stops):
+    # The two sides share the circle where the children may arrive.
+    assert not stops_reached(CORRIDOR, np.array([4.0, 0.0]), stops)
