@@ -385,11 +385,13 @@ class BatchRun:
         index = np.arange(self.trials)[r]
         points: list[NDArray[np.float64]] = []
         pixels: list[NDArray[np.float64]] = []
+        taken = self.datasets.get(("reference", camera, 0), [])
+        arrays = [data.arrays(data.size) if data.points else None for data in taken]
         for k in index:
-            for data in reversed(self.datasets.get(("reference", camera, 0), [])):
+            for data, both in zip(reversed(taken), reversed(arrays), strict=True):
                 where = np.flatnonzero((data.rows == k) & data.alive)
-                if len(where) and data.points:
-                    pts, pix = data.arrays(data.size)
+                if len(where) and both is not None:
+                    pts, pix = both
                     points.append(pts[where[0]])
                     pixels.append(pix[where[0]])
                     break
