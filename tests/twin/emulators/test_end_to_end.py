@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from twin.drivers.build import build_rig
-from twin.drivers.rig_file import load_rig_file
-from twin.emulators.emulation import start_emulation
+from twin.drivers.rig_file import load_rig_file, write_rig_file
+from twin.emulators.emulation import start_emulation, truth_file
 from twin.emulators.geocom_faults import Fault
 from twin.hal.conformance import check_rig
 from twin.montecarlo.prediction import predictions_from_log
@@ -298,25 +298,45 @@ def _silent_instrument(em) -> None:
     em.total_station.faults.set(Fault.SILENT)
 
 
+SILENT_TIMEOUT_WALL = 1.0
+"""The instrument's timeout in the silent instrument's run, wall s: it is found lost after
+three unanswered requests, 3 s rather than the rig file's 7.5 s (a reply the emulator
+sends takes milliseconds)."""
+
+
 def _unknown_code(em) -> None:
     em.total_station.faults.set(Fault.CODE, code=4242, times=2)
 
 
 @pytest.mark.parametrize(
-    ("inject", "expected", "calibrated"),
+    ("inject", "expected", "calibrated", "reference"),
     [
-        (_drop_child1, {"device_lost": 1, "campaign_aborted": 1}, False),
-        (_silent_instrument, {"device_lost": 1, "campaign_aborted": 1}, False),
-        (_unknown_code, {"instrument_fault": 2}, True),
+        (_drop_child1, {"device_lost": 1, "campaign_aborted": 1}, False, True),
+        (_silent_instrument, {"device_lost": 1, "campaign_aborted": 1}, False, True),
+        (_unknown_code, {"instrument_fault": 2}, True, False),
     ],
     ids=["robot-unplugged", "instrument-silent", "unknown-return-code"],
 )
 def test_a_device_fault_mid_run_is_recorded_and_the_run_ends_cleanly(
-    emulation, tmp_path, inject, expected, calibrated
+    tmp_path, inject, expected, calibrated, reference
 ):
-    # The smoke scenario as it is: the fault comes during its reference data set.
-    smoke = SMOKE
+    # The faults that end the run come during the smoke scenario's reference data set; the
+    # one the run goes on after comes during the camera's data set, in the scenario without
+    # the reference data set (the run goes to its end, and that set would double its time).
+    smoke = SMOKE if reference else _without_reference(tmp_path)
+    emulation = start_emulation(smoke, time_scale=SCALE, camera_fps=FPS, seed=SEED)
+    try:
+        _fault_mid_run(emulation, smoke, tmp_path, inject, expected, calibrated)
+    finally:
+        emulation.close()
+
+
+def _fault_mid_run(emulation, smoke, tmp_path, inject, expected, calibrated) -> None:
     rig_path = emulation.write_rig_file(tmp_path / "rig.toml")
+    if inject is _silent_instrument:
+        rig = emulation.rig_file(truth_file(rig_path).name)
+        rig["total_station"]["timeout_s"] = SILENT_TIMEOUT_WALL * SCALE
+        write_rig_file(rig_path, rig)
     injected: list[float] = []
 
     def fault_when_taking_data() -> None:
