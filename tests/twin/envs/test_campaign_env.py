@@ -91,9 +91,11 @@ def test_a_scenario_with_accuracy_stops_runs():
     for stops in ("all_leds", "accuracy"):
         scenario = with_values(load_scenario(SMOKE), {"campaign.data_stops": stops})
         env = gymnasium.make(f"twin.envs:{ENV_ID}", scenario=scenario).unwrapped
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            check_env(env)
+        # The smoke room as it is ("all_leds") passes check_env in the test above.
+        if stops == "accuracy":
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                check_env(env)
         _, _, infos = rollout(env, 7, policy="paper")
         assert infos[-1]["camera_errors_mm"], "the smoke room's camera is calibrated"
         predicted[stops] = np.mean([s.predicted_error for s in env.camera_states()])
