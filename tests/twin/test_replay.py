@@ -49,8 +49,11 @@ def test_the_replay_of_a_log_gives_the_runs_results(run, tmp_path):
 
 
 def test_a_replay_without_report_keeps_the_runs_pixel_size(tmp_path):
+    # Without the reference data set (half the run; the pixel size does not depend on it).
     scenario = tmp_path / "fine_pixels.toml"
-    scenario.write_text(SMOKE.read_text() + "\n[campaign]\npixel_size_mm = 0.005\n")
+    scenario.write_text(
+        SMOKE.read_text() + "\n[campaign]\npixel_size_mm = 0.005\nreference_cameras = []\n"
+    )
     results = run_scenario(scenario, tmp_path / "run", fidelity="geometric", report=False, seed=5)
     assert results["pixel_size_mm"] == 0.005
     again = replay_log(tmp_path / "run" / "log.mcap", tmp_path / "replay", report=False)
@@ -185,9 +188,12 @@ def test_another_scenario_is_refused_by_digest_unless_forced(relative_run, tmp_p
 
 
 def test_the_runs_seed_and_noise_are_the_runs_scenario(tmp_path):
-    run_scenario(SMOKE, tmp_path / "run", fidelity="geometric", report=False, seed=7, noise=False)
+    # Without the reference data set (half the run; the log's scenario does not depend on it).
+    smoke = tmp_path / "smoke.toml"
+    smoke.write_text(SMOKE.read_text() + "\n[campaign]\nreference_cameras = []\n")
+    run_scenario(smoke, tmp_path / "run", fidelity="geometric", report=False, seed=7, noise=False)
     meta = _meta(tmp_path / "run" / "log.mcap")
-    sc = run_scenario_of(meta, SMOKE, tmp_path / "run" / "log.mcap")
+    sc = run_scenario_of(meta, smoke, tmp_path / "run" / "log.mcap")
     assert scenario_digest(sc) == meta["scenario_digest"]
     assert sc.seed == 7
 
