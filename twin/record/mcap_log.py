@@ -120,15 +120,12 @@ class McapRecorder(Closing):
         payload = json.dumps(data, allow_nan=False, separators=(",", ":"))
         # An interruption waits until the record is written whole.
         with deferred_interrupts():
-            channel_id = self._channel(topic, record)
-            sequence = self._sequence.get(channel_id, 0)
-            self._sequence[channel_id] = sequence + 1
-            self._writer.add_message(
-                channel_id=channel_id,
-                log_time=time_ns,
-                data=payload.encode("utf-8"),
-                publish_time=time_ns,
-                sequence=sequence,
+            add_message(
+                self._writer,
+                self._sequence,
+                self._channel(topic, record),
+                payload.encode("utf-8"),
+                time_ns,
             )
             if self._foxglove is not None:
                 self._write_foxglove(topic, data, float(timestamp), time_ns)
@@ -181,6 +178,22 @@ class McapRecorder(Closing):
             data = json.dumps(_json_schema(record)).encode("utf-8")
             self._schemas[name] = self._writer.register_schema(name, SCHEMA_ENCODING, data)
         return self._schemas[name]
+
+
+def add_message(
+    writer: Writer, sequences: dict[int, int], channel_id: int, data: bytes, time_ns: int
+) -> None:
+    """Write ``data`` on the channel ``channel_id`` at ``time_ns`` (its log and publish
+    time, ns), numbered in its channel's sequence (``sequences``, by channel, counted up)."""
+    sequence = sequences.get(channel_id, 0)
+    sequences[channel_id] = sequence + 1
+    writer.add_message(
+        channel_id=channel_id,
+        log_time=time_ns,
+        data=data,
+        publish_time=time_ns,
+        sequence=sequence,
+    )
 
 
 def _is_record(record: object) -> bool:

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
+from tests.twin.campaign.drive_goals import recorded_goals
 from twin.campaign import Campaign, CampaignAborted
 from twin.campaign.plan.stop import Stop
 from twin.campaign.plan.ways import way_to
@@ -55,14 +56,7 @@ def test_a_child_drives_round_the_parent_to_a_stop_behind_it(monkeypatch):
     travel = campaign.travel
     child = sim.rig.children["child1"]
     assert child.drive_to(np.array([-1.5, 0.0])).reached  # the parent stands at (0, 0)
-    goals: list[np.ndarray] = []
-    driving = child.drive_to
-
-    def drive(goal_xy, goal_yaw=None):
-        goals.append(np.asarray(goal_xy, dtype=float).copy())
-        return driving(goal_xy, goal_yaw)
-
-    monkeypatch.setattr(child, "drive_to", drive)
+    goals = recorded_goals(monkeypatch, child)
     robots, keep = travel.standing_robots("child1")
     parent = travel.cps.parent.translation[:2]
     start, stop = child.odometry().pose[:2].copy(), np.array([1.6, 0.0])

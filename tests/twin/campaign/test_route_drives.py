@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
+from tests.twin.campaign.drive_goals import recorded_goals
 from twin.campaign import Campaign
 from twin.campaign.plan.clearance import path_clear
 from twin.campaign.plan.stop import Stop
@@ -49,14 +50,7 @@ def drives(monkeypatch):
     travel = Campaign(sim.rig, sc, _Quiet()).travel
     child = sim.rig.children["child1"]
     assert child.drive_to(np.array([-1.5, 0.3])).reached
-    goals: list[np.ndarray] = []
-    driving = child.drive_to
-
-    def drive(goal_xy, goal_yaw=None):
-        goals.append(np.asarray(goal_xy, dtype=float).copy())
-        return driving(goal_xy, goal_yaw)
-
-    monkeypatch.setattr(child, "drive_to", drive)
+    goals = recorded_goals(monkeypatch, child)
     yield sim, travel, goals
     sim.close()
 
@@ -131,14 +125,7 @@ def test_the_drive_past_a_corner_passed_by_goes_round_the_map(monkeypatch):
     robots, keep = travel.standing_robots("child1")
     assert all(_nearest(start, stop, c) >= k for c, k in zip(robots, keep, strict=True))
     assert not path_clear(sc.space, start, stop, WAY_CLEARANCE)
-    goals: list[np.ndarray] = []
-    driving = child.drive_to
-
-    def drive(goal_xy, goal_yaw=None):
-        goals.append(np.asarray(goal_xy, dtype=float).copy())
-        return driving(goal_xy, goal_yaw)
-
-    monkeypatch.setattr(child, "drive_to", drive)
+    goals = recorded_goals(monkeypatch, child)
     assert travel.drive_along(child, _move(parent, stop))
     sim.close()
     assert len(goals) >= 2  # round the post, then the stop

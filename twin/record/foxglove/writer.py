@@ -9,6 +9,7 @@ from mcap.records import Channel
 from mcap.writer import Writer
 
 from twin.record.mcap_log import FOXGLOVE_ENCODING as MESSAGE_ENCODING
+from twin.record.mcap_log import add_message
 
 
 def is_foxglove_channel(channel: Channel) -> bool:
@@ -33,16 +34,8 @@ class FoxgloveChannels:
 
     def write(self, topic: str, message: Any, timestamp_ns: int) -> None:
         """Write ``message`` on ``topic`` at ``timestamp_ns`` (log and publish time)."""
-        channel_id = self._channel(topic, message)
-        sequence = self._sequence.get(channel_id, 0)
-        self._sequence[channel_id] = sequence + 1
-        self._writer.add_message(
-            channel_id=channel_id,
-            log_time=timestamp_ns,
-            data=message.encode(),
-            publish_time=timestamp_ns,
-            sequence=sequence,
-        )
+        channel = self._channel(topic, message)
+        add_message(self._writer, self._sequence, channel, message.encode(), timestamp_ns)
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def _channel(self, topic: str, message: Any) -> int:
