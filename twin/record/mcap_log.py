@@ -88,11 +88,7 @@ class McapRecorder(Closing):
         self._count = 0
         self._closed = False
         self._foxglove = foxglove
-        self._foxglove_channels = None
-        if foxglove is not None:
-            from twin.record.foxglove import FoxgloveChannels
-
-            self._foxglove_channels = FoxgloveChannels(self._writer)
+        self._foxglove_channels = FoxgloveChannels(self._writer) if foxglove is not None else None
 
     @property
     def foxglove_counts(self) -> dict[str, int]:
@@ -178,6 +174,43 @@ class McapRecorder(Closing):
             data = json.dumps(_json_schema(record)).encode("utf-8")
             self._schemas[name] = self._writer.register_schema(name, SCHEMA_ENCODING, data)
         return self._schemas[name]
+
+
+class FoxgloveChannels:
+    """Writes Foxglove messages (:mod:`foxglove.messages`, each encoded by the SDK with its
+    own schema: ``foxglove.FrameTransforms``...) with ``writer``, one channel per topic,
+    registering each schema and channel the first time it is used.
+
+    Attributes:
+        counts: messages written, by topic.
+    """
+
+    def __init__(self, writer: Writer) -> None:
+        self._writer = writer
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}
+        self.counts: dict[str, int] = {}
+
+    def write(self, topic: str, message: Any, timestamp_ns: int) -> None:
+        """Write ``message`` on ``topic`` at ``timestamp_ns`` (log and publish time)."""
+        channel = self._channel(topic, message)
+        add_message(self._writer, self._sequence, channel, message.encode(), timestamp_ns)
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+
+    def _channel(self, topic: str, message: Any) -> int:
+        if topic not in self._channels:
+            schema = type(message).get_schema()
+            if schema.name not in self._schemas:
+                self._schemas[schema.name] = self._writer.register_schema(
+                    schema.name, schema.encoding, schema.data
+                )
+            self._channels[topic] = self._writer.register_channel(
+                topic=topic,
+                message_encoding=FOXGLOVE_ENCODING,
+                schema_id=self._schemas[schema.name],
+            )
+        return self._channels[topic]
 
 
 def add_message(

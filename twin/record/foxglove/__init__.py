@@ -9,13 +9,10 @@ with a :class:`FoxgloveStream`), or from an older log by ``twin replay --foxglov
   cameras' view frustums, the LED points, the parent's covariance, the lines of sight.
 - :mod:`.stream`: :class:`FoxgloveStream`, the records in, the messages out (topics in
   :data:`TOPICS`), the same for a run and for a replay.
-- :mod:`.writer`: :class:`FoxgloveChannels`, the messages into an MCAP writer (protobuf,
-  with the SDK's schemas).
 
 Timestamps are the campaign's clock (s since the run's start), as the records'.
 """
 
 from twin.record.foxglove.stream import TOPICS, FoxgloveStream
-from twin.record.foxglove.writer import FoxgloveChannels, is_foxglove_channel
 
-__all__ = ["TOPICS", "FoxgloveChannels", "FoxgloveStream", "is_foxglove_channel"]
+__all__ = ["TOPICS", "FoxgloveStream"]
