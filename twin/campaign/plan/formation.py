@@ -124,35 +124,160 @@ def formation(
     sides += [(a * lat, b * lat) for a, b in ((0, -1), (0, 1), (-1, 0), (1, 0), (-1.5, -0.3))]
     sides += [(a * lat, b * lat) for a, b in ((1.5, 0.3), (-0.3, -1.5), (0.3, 1.5))]
     sides += [(0.3, -0.3), (-0.3, 0.3), (0.15, -0.15), (-0.15, 0.15)]  # narrow corridors
+    checks = _Checks(space, cubes, stations, instrument_range, waiting_xy)
     best: tuple[int, list[Stop]] | None = None  # the first placement keeping margins[k]
     for gap in gaps:
         for spacing in (form.spacing, 0.7 * form.spacing):
             for near_side, far_side in sides:
-                places = []
-                for ahead, side in ((gap + spacing, far_side), (gap, near_side)):
-                    s = s_next + direction * ahead
-                    yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
-                    places.append((path.offset(s, side * direction), yaw))
+                # The places repeat over the sides and spacings: each is checked once.
+                far = checks.spot(path, s_next, direction, gap + spacing, far_side)
+                near = checks.spot(path, s_next, direction, gap, near_side)
+                if not (checks.free(far[0]) and checks.free(near[0])):
+                    continue
+                if np.linalg.norm(far[0] - near[0]) < 1.0:
+                    continue
                 # Where the children stand decides most; their headings cost more to find.
-                if not _places_ok(space, [xy for xy, _ in places], stations):
-                    continue
-                stops = []
-                for xy, yaw in places:
-                    turned = unhidden_yaw(xy, yaw, cubes, stations, space.floor_z)
-                    if turned is None:
-                        break  # every heading hides a prism from a station
-                    stops.append(Stop(xy, turned))
-                if len(stops) < len(places):
-                    continue
+                stops = [checks.turned(*far), checks.turned(*near)]
+                if stops[0] is None or stops[1] is None:
+                    continue  # every heading hides a prism from a station
                 for k in range(len(margins) if best is None else best[0]):
-                    if _formation_ok(
-                        space, stops, stations, cubes, instrument_range, waiting_xy, margins[k]
-                    ):
+                    if checks.pair_ok(stops, margins[k]):
                         if k == 0:
                             return k, stops
                         best = (k, stops)
                         break
     return best
+
+
+class _Checks:
+    """The checks of :func:`_formation_ok` for one search, what each child's place needs
+    alone found once (a search tries a place in many pairs): the same answers as
+    :func:`_places_ok`, :func:`unhidden_yaw` and :func:`_formation_ok` for each pair.
+
+    Args: as :func:`_formation_ok`; ``stations``: (2,) (3,) the instrument's positions, m.
+    """
+
+    def __init__(
+        self,
+        space: Space,
+        cubes: NDArray[np.float64],
+        stations: list[NDArray[np.float64]],
+        instrument_range: tuple[float, float],
+        waiting_xy: ArrayLike | None,
+    ) -> None:
+        self.space, self.cubes, self.stations = space, cubes, stations
+        self.instrument_range = instrument_range
+        self.waiting = None if waiting_xy is None else np.asarray(waiting_xy, dtype=float)
+        self.profile = child_profile(space.floor_z)
+        self._spots: dict[tuple[float, float], tuple[NDArray[np.float64], float]] = {}
+        self._turned: dict[tuple[bytes, float], Stop | None] = {}
+        self._free: dict[bytes, bool] = {}
+        self._stops: dict[tuple[bytes, float], _Stop] = {}
+
+    def spot(
+        self, path: RoutePath, s_next: float, direction: float, ahead: float, side: float
+    ) -> tuple[NDArray[np.float64], float]:
+        """The (2,) place (m) and heading (rad) of a child ``ahead`` (m) of ``s_next`` along
+        the route and ``side`` (m) off it, as :func:`formation` places them."""
+        key = (ahead, side)
+        if key not in self._spots:
+            s = s_next + direction * ahead
+            yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
+            self._spots[key] = (path.offset(s, side * direction), yaw)
+        return self._spots[key]
+
+    def turned(self, xy: NDArray[np.float64], yaw: float) -> Stop | None:
+        """The stop at ``xy`` turned from ``yaw`` so that no prism is hidden
+        (:func:`unhidden_yaw`); None where no heading is."""
+        key = (np.asarray(xy, dtype=float).tobytes(), yaw)
+        if key not in self._turned:
+            turned = unhidden_yaw(xy, yaw, self.cubes, self.stations, self.space.floor_z)
+            self._turned[key] = None if turned is None else Stop(xy, turned)
+        return self._turned[key]
+
+    def free(self, xy: NDArray[np.float64]) -> bool:
+        """Whether a child fits at ``xy`` ((2,) m) and stands 1 m from each instrument."""
+        p = np.asarray(xy, dtype=float).reshape(1, 2)
+        key = p.tobytes()
+        if key not in self._free:
+            self._free[key] = bool(robot_fits(self.space, p, FORMATION_CLEARANCE)[0]) and all(
+                np.linalg.norm(p - inst[:2], axis=1)[0] >= 1.0 for inst in self.stations
+            )
+        return self._free[key]
+
+    def _stop(self, stop: Stop) -> _Stop:
+        xy = np.asarray(stop.xy, dtype=float).reshape(2)
+        key = (xy.tobytes(), float(stop.yaw))
+        if key not in self._stops:
+            pts = body_points(xy, stop.yaw, self.cubes, self.space.floor_z)[0]
+            self._stops[key] = _Stop(xy, pts, self)
+        return self._stops[key]
+
+    def pair_ok(self, stops: list[Stop], sight_margin: float) -> bool:
+        """:func:`_formation_ok` of the two stops (the far child's first)."""
+        if not (self.free(stops[0].xy) and self.free(stops[1].xy)):
+            return False
+        far, near = self._stop(stops[0]), self._stop(stops[1])
+        if np.linalg.norm(far.xy - near.xy) < 1.0:
+            return False
+        if not far.clear_of_waiting():
+            return False
+        for e, inst in enumerate(self.stations):
+            sep = abs(wrap_angle(far.bearings[e] - near.bearings[e]))
+            if sep < MIN_SEPARATION:
+                return False
+            for one, other in ((far, near), (near, far)):
+                if passes_near(inst, one.pts, other.xy, self.profile).any():
+                    return False
+        return far.seen(sight_margin) and near.seen(sight_margin)
+
+
+class _Stop:
+    """A child's stop in a :class:`_Checks` search: what it needs of the instrument's
+    stations alone, each found once.
+
+    Attributes:
+        xy: (2,) m. pts: (3, 3) its prisms, m (W). bearings: its bearing from each
+        station, rad.
+    """
+
+    def __init__(self, xy: NDArray[np.float64], pts: NDArray[np.float64], checks: _Checks):
+        self.xy, self.pts, self._checks = xy, pts, checks
+        self.bearings = []
+        for inst in checks.stations:
+            v = xy - inst[:2]
+            self.bearings.append(math.atan2(v[1], v[0]))
+        self._in_range: bool | None = None
+        self._seen: dict[float, bool] = {}
+        self._waiting: bool | None = None
+
+    def seen(self, margin: float) -> bool:
+        """Whether every prism is in range of each station and in sight, by ``margin``
+        (m)."""
+        c = self._checks
+        if self._in_range is None:
+            self._in_range = all(
+                in_range(np.linalg.norm(self.pts - inst, axis=1), c.instrument_range).all()
+                for inst in c.stations
+            )
+        if not self._in_range:
+            return False
+        if margin not in self._seen:
+            self._seen[margin] = all(
+                sight_clear(c.space, inst, self.pts, margin).all() for inst in c.stations
+            )
+        return self._seen[margin]
+
+    def clear_of_waiting(self) -> bool:
+        """Whether the waiting child leaves the prisms clear from the current station (as
+        the far child)."""
+        c = self._checks
+        if c.waiting is None:
+            return True
+        if self._waiting is None:
+            far = self.pts
+            self._waiting = not passes_near(c.stations[0], far, c.waiting, c.profile).any()
+        return self._waiting
 
 
 def _places_ok(
@@ -298,6 +423,7 @@ def corner_formation(
     for inst in stations:
         bearing = np.arctan2(xy[:, 1] - inst[1], xy[:, 0] - inst[0])
         apart &= np.abs(wrap_angle(bearing[:, None] - bearing[None])) >= MIN_SEPARATION
+    checks = _Checks(space, cubes, stations, instrument_range, waiting_xy)
     for k, margin in enumerate(margins):
         for i in order[:CORNER_PAIRS]:
             far = stop_at(int(i))
@@ -309,9 +435,7 @@ def corner_formation(
                 if near is None:
                     continue
                 pair = [far, near]
-                if _formation_ok(
-                    space, pair, stations, cubes, instrument_range, waiting_xy, margin
-                ):
+                if checks.pair_ok(pair, margin):
                     return k, pair
     return None
 
