@@ -137,10 +137,15 @@ def formation(
                 if np.linalg.norm(far[0] - near[0]) < 1.0:
                     continue
                 # Where the children stand decides most; their headings cost more to find.
-                stops = [checks.turned(*far), checks.turned(*near)]
-                if stops[0] is None or stops[1] is None:
-                    continue  # every heading hides a prism from a station
-                for k in range(len(margins) if best is None else best[0]):
+                tried = margins[: len(margins) if best is None else best[0]]
+                first = checks.turned(*far)
+                if first is None or not any(checks.alone_ok(first, m, True) for m in tried):
+                    continue  # every heading hides a prism from a station, or it is unseen
+                second = checks.turned(*near)
+                if second is None:
+                    continue
+                stops = [first, second]
+                for k in range(len(tried)):
                     if checks.pair_ok(stops, margins[k]):
                         if k == 0:
                             return k, stops
@@ -213,14 +218,25 @@ class _Checks:
             self._stops[key] = _Stop(xy, pts, self)
         return self._stops[key]
 
+    def alone_ok(self, stop: Stop, sight_margin: float, first: bool) -> bool:
+        """What :func:`_formation_ok` asks of one child's stop alone: free, in range and in
+        sight of both stations by ``sight_margin`` (m); the ``first`` to move, clear of
+        the waiting child."""
+        if not self.free(stop.xy):
+            return False
+        kept = self._stop(stop)
+        return kept.seen(sight_margin) and (not first or kept.clear_of_waiting())
+
     def pair_ok(self, stops: list[Stop], sight_margin: float) -> bool:
         """:func:`_formation_ok` of the two stops (the far child's first)."""
-        if not (self.free(stops[0].xy) and self.free(stops[1].xy)):
+        # What each stop needs alone is kept: the pairs that fail on it fail at once.
+        if not (
+            self.alone_ok(stops[0], sight_margin, True)
+            and self.alone_ok(stops[1], sight_margin, False)
+        ):
             return False
         far, near = self._stop(stops[0]), self._stop(stops[1])
         if np.linalg.norm(far.xy - near.xy) < 1.0:
-            return False
-        if not far.clear_of_waiting():
             return False
         for e, inst in enumerate(self.stations):
             sep = abs(wrap_angle(far.bearings[e] - near.bearings[e]))
@@ -229,7 +245,7 @@ class _Checks:
             for one, other in ((far, near), (near, far)):
                 if passes_near(inst, one.pts, other.xy, self.profile).any():
                     return False
-        return far.seen(sight_margin) and near.seen(sight_margin)
+        return True
 
 
 class _Stop:
@@ -403,15 +419,16 @@ def corner_formation(
         xy, top = xy[seen], top[seen]
     if len(xy) < 2:
         return None
-    ahead = np.array([direction * (path.project(p, near=s_next) - s_next) for p in xy])
-    off = np.array([np.linalg.norm(path.at(path.project(p, near=s_next)) - p) for p in xy])
+    arc = [path.project(p, near=s_next) for p in xy]
+    ahead = np.array([direction * (s - s_next) for s in arc])
+    off = np.array([np.linalg.norm(path.at(s) - p) for s, p in zip(arc, xy, strict=True)])
     score = np.minimum(ahead, CORNER_AHEAD) - 0.25 * off
     order = np.argsort(-score, kind="stable")
     stops: list[Stop | None] = [None] * len(xy)
 
     def stop_at(i: int) -> Stop | None:
         if stops[i] is None:
-            s = path.project(xy[i], near=s_next)
+            s = arc[i]
             yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
             turned = unhidden_yaw(xy[i], yaw, cubes, stations, space.floor_z)
             stops[i] = Stop(xy[i], turned) if turned is not None else Stop(xy[i], math.nan)
