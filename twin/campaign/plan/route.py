@@ -76,13 +76,13 @@ class RoutePath:
         q = np.asarray(xy, dtype=float).reshape(2)
         lo, hi = (-math.inf, math.inf) if near is None else (near - window, near + window)
         found: list[tuple[float, float]] = []  # (arc length, distance), in path order
-        for i, (a, d, n) in enumerate(
-            zip(self.points[:-1], self.directions, self.lengths, strict=True)
-        ):
+        # The segments that reach into the window (a long route has hundreds).
+        first = self.starts[:-1]
+        inside = np.minimum(self.lengths, hi - first) >= np.maximum(0.0, lo - first)
+        for i in np.flatnonzero(inside):
+            a, d, n = self.points[i], self.directions[i], self.lengths[i]
             t_lo = max(0.0, lo - self.starts[i])
             t_hi = min(n, hi - self.starts[i])
-            if t_hi < t_lo:
-                continue
             t = float(np.clip((q - a) @ d, t_lo, t_hi))
             found.append((self.starts[i] + t, float(np.linalg.norm(a + t * d - q))))
         for end, s_end, sign in ((0, 0.0, -1.0), (-1, self.length, 1.0)):
