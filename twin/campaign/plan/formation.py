@@ -17,25 +17,19 @@ from calib.rotation import wrap_angle
 from twin.campaign.plan.clearance import (
     CHILD_BODY,
     PARENT_BODY,
-    body_points,
-    child_profile,
     in_range,
-    passes_near,
     robot_fits,
     sight_clear,
+)
+from twin.campaign.plan.formation_checks import (
+    FORMATION_CLEARANCE,
+    MIN_SEPARATION,
+    FormationChecks,
 )
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
 from twin.campaign.plan.stop import Stop
 from twin.scenario.schema import FormationSettings, Space
-
-MIN_SEPARATION = math.radians(4.0)
-"""Least angle between the two children seen from the parent, so that an aim at one is
-not nearer the other (a parent that just moved knows its heading to about a degree)."""
-
-FORMATION_CLEARANCE = 0.35
-"""Distance kept between a child's centre and walls in the formation, m (its radius, 0.29 m,
-and its stopping error: narrow corridors need the children close to the walls)."""
 
 SIGHT_MARGIN = 0.10
 """A formation's lines of sight pass obstacles by at least this much, m: a child stops
@@ -124,7 +118,7 @@ def formation(
     sides += [(a * lat, b * lat) for a, b in ((0, -1), (0, 1), (-1, 0), (1, 0), (-1.5, -0.3))]
     sides += [(a * lat, b * lat) for a, b in ((1.5, 0.3), (-0.3, -1.5), (0.3, 1.5))]
     sides += [(0.3, -0.3), (-0.3, 0.3), (0.15, -0.15), (-0.15, 0.15)]  # narrow corridors
-    checks = _Checks(space, cubes, stations, instrument_range, waiting_xy)
+    checks = FormationChecks(space, cubes, stations, instrument_range, waiting_xy)
     best: tuple[int, list[Stop]] | None = None  # the first placement keeping margins[k]
     for gap in gaps:
         for spacing in (form.spacing, 0.7 * form.spacing):
@@ -152,200 +146,6 @@ def formation(
                         best = (k, stops)
                         break
     return best
-
-
-class _Checks:
-    """The checks of :func:`_formation_ok` for one search, what each child's place needs
-    alone found once (a search tries a place in many pairs): the same answers as
-    :func:`_places_ok`, :func:`unhidden_yaw` and :func:`_formation_ok` for each pair.
-
-    Args: as :func:`_formation_ok`; ``stations``: (2,) (3,) the instrument's positions, m.
-    """
-
-    def __init__(
-        self,
-        space: Space,
-        cubes: NDArray[np.float64],
-        stations: list[NDArray[np.float64]],
-        instrument_range: tuple[float, float],
-        waiting_xy: ArrayLike | None,
-    ) -> None:
-        self.space, self.cubes, self.stations = space, cubes, stations
-        self.instrument_range = instrument_range
-        self.waiting = None if waiting_xy is None else np.asarray(waiting_xy, dtype=float)
-        self.profile = child_profile(space.floor_z)
-        self._spots: dict[tuple[float, float], tuple[NDArray[np.float64], float]] = {}
-        self._turned: dict[tuple[bytes, float], Stop | None] = {}
-        self._free: dict[bytes, bool] = {}
-        self._stops: dict[tuple[bytes, float], _Stop] = {}
-
-    def spot(
-        self, path: RoutePath, s_next: float, direction: float, ahead: float, side: float
-    ) -> tuple[NDArray[np.float64], float]:
-        """The (2,) place (m) and heading (rad) of a child ``ahead`` (m) of ``s_next`` along
-        the route and ``side`` (m) off it, as :func:`formation` places them."""
-        key = (ahead, side)
-        if key not in self._spots:
-            s = s_next + direction * ahead
-            yaw = path.heading(s) + (0.0 if direction > 0 else math.pi)
-            self._spots[key] = (path.offset(s, side * direction), yaw)
-        return self._spots[key]
-
-    def turned(self, xy: NDArray[np.float64], yaw: float) -> Stop | None:
-        """The stop at ``xy`` turned from ``yaw`` so that no prism is hidden
-        (:func:`unhidden_yaw`); None where no heading is."""
-        key = (np.asarray(xy, dtype=float).tobytes(), yaw)
-        if key not in self._turned:
-            turned = unhidden_yaw(xy, yaw, self.cubes, self.stations, self.space.floor_z)
-            self._turned[key] = None if turned is None else Stop(xy, turned)
-        return self._turned[key]
-
-    def free(self, xy: NDArray[np.float64]) -> bool:
-        """Whether a child fits at ``xy`` ((2,) m) and stands 1 m from each instrument."""
-        p = np.asarray(xy, dtype=float).reshape(1, 2)
-        key = p.tobytes()
-        if key not in self._free:
-            self._free[key] = bool(robot_fits(self.space, p, FORMATION_CLEARANCE)[0]) and all(
-                np.linalg.norm(p - inst[:2], axis=1)[0] >= 1.0 for inst in self.stations
-            )
-        return self._free[key]
-
-    def _stop(self, stop: Stop) -> _Stop:
-        xy = np.asarray(stop.xy, dtype=float).reshape(2)
-        key = (xy.tobytes(), float(stop.yaw))
-        if key not in self._stops:
-            pts = body_points(xy, stop.yaw, self.cubes, self.space.floor_z)[0]
-            self._stops[key] = _Stop(xy, pts, self)
-        return self._stops[key]
-
-    def alone_ok(self, stop: Stop, sight_margin: float, first: bool) -> bool:
-        """What :func:`_formation_ok` asks of one child's stop alone: free, in range and in
-        sight of both stations by ``sight_margin`` (m); the ``first`` to move, clear of
-        the waiting child."""
-        if not self.free(stop.xy):
-            return False
-        kept = self._stop(stop)
-        return kept.seen(sight_margin) and (not first or kept.clear_of_waiting())
-
-    def pair_ok(self, stops: list[Stop], sight_margin: float) -> bool:
-        """:func:`_formation_ok` of the two stops (the far child's first)."""
-        # What each stop needs alone is kept: the pairs that fail on it fail at once.
-        if not (
-            self.alone_ok(stops[0], sight_margin, True)
-            and self.alone_ok(stops[1], sight_margin, False)
-        ):
-            return False
-        far, near = self._stop(stops[0]), self._stop(stops[1])
-        if np.linalg.norm(far.xy - near.xy) < 1.0:
-            return False
-        for e, inst in enumerate(self.stations):
-            sep = abs(wrap_angle(far.bearings[e] - near.bearings[e]))
-            if sep < MIN_SEPARATION:
-                return False
-            for one, other in ((far, near), (near, far)):
-                if passes_near(inst, one.pts, other.xy, self.profile).any():
-                    return False
-        return True
-
-
-class _Stop:
-    """A child's stop in a :class:`_Checks` search: what it needs of the instrument's
-    stations alone, each found once.
-
-    Attributes:
-        xy: (2,) m. pts: (3, 3) its prisms, m (W). bearings: its bearing from each
-        station, rad.
-    """
-
-    def __init__(self, xy: NDArray[np.float64], pts: NDArray[np.float64], checks: _Checks):
-        self.xy, self.pts, self._checks = xy, pts, checks
-        self.bearings = []
-        for inst in checks.stations:
-            v = xy - inst[:2]
-            self.bearings.append(math.atan2(v[1], v[0]))
-        self._in_range: bool | None = None
-        self._seen: dict[float, bool] = {}
-        self._waiting: bool | None = None
-
-    def seen(self, margin: float) -> bool:
-        """Whether every prism is in range of each station and in sight, by ``margin``
-        (m)."""
-        c = self._checks
-        if self._in_range is None:
-            self._in_range = all(
-                in_range(np.linalg.norm(self.pts - inst, axis=1), c.instrument_range).all()
-                for inst in c.stations
-            )
-        if not self._in_range:
-            return False
-        if margin not in self._seen:
-            self._seen[margin] = all(
-                sight_clear(c.space, inst, self.pts, margin).all() for inst in c.stations
-            )
-        return self._seen[margin]
-
-    def clear_of_waiting(self) -> bool:
-        """Whether the waiting child leaves the prisms clear from the current station (as
-        the far child)."""
-        c = self._checks
-        if c.waiting is None:
-            return True
-        if self._waiting is None:
-            far = self.pts
-            self._waiting = not passes_near(c.stations[0], far, c.waiting, c.profile).any()
-        return self._waiting
-
-
-def _places_ok(
-    space: Space, places: list[NDArray[np.float64]], stations: list[NDArray[np.float64]]
-) -> bool:
-    """Whether the children's (2,) places (m) are free, 1 m apart and 1 m from each
-    instrument ((3,) positions, m)."""
-    xy = np.array(places)
-    if not robot_fits(space, xy, FORMATION_CLEARANCE).all():
-        return False
-    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
-        return False
-    return all(np.min(np.linalg.norm(xy - inst[:2], axis=1)) >= 1.0 for inst in stations)
-
-
-def _formation_ok(
-    space: Space,
-    stops: list[Stop],
-    stations: list[NDArray[np.float64]],
-    cubes: NDArray[np.float64],
-    instrument_range: tuple[float, float],
-    waiting_xy: ArrayLike | None = None,
-    sight_margin: float = SIGHT_MARGIN,
-) -> bool:
-    """Whether the children's stops suit both stations: see :func:`formation`. Their
-    headings already keep every prism clear of its own assembly (:func:`unhidden_yaw`)."""
-    xy = np.array([s.xy for s in stops])
-    if not _places_ok(space, list(xy), stations):
-        return False
-    floor = space.floor_z
-    if waiting_xy is not None:
-        far = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
-        if passes_near(stations[0], far, waiting_xy, child_profile(floor)).any():
-            return False
-    for inst in stations:
-        bearings = []
-        for k, stop in enumerate(stops):
-            pts = body_points(stop.xy, stop.yaw, cubes, floor)[0]
-            d = np.linalg.norm(pts - inst, axis=1)
-            if not in_range(d, instrument_range).all():
-                return False
-            if not sight_clear(space, inst, pts, sight_margin).all():
-                return False
-            other = xy[1 - k]
-            if passes_near(inst, pts, other, child_profile(floor)).any():
-                return False
-            v = stop.xy - inst[:2]
-            bearings.append(math.atan2(v[1], v[0]))
-        sep = abs(wrap_angle(bearings[0] - bearings[1]))
-        if sep < MIN_SEPARATION:
-            return False
-    return True
 
 
 CORNER_REACH = 6.0
@@ -440,7 +240,7 @@ def corner_formation(
     for inst in stations:
         bearing = np.arctan2(xy[:, 1] - inst[1], xy[:, 0] - inst[0])
         apart &= np.abs(wrap_angle(bearing[:, None] - bearing[None])) >= MIN_SEPARATION
-    checks = _Checks(space, cubes, stations, instrument_range, waiting_xy)
+    checks = FormationChecks(space, cubes, stations, instrument_range, waiting_xy)
     for k, margin in enumerate(margins):
         for i in order[:CORNER_PAIRS]:
             far = stop_at(int(i))

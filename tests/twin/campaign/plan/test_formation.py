@@ -8,13 +8,28 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numpy.typing import ArrayLike, NDArray
 
-from twin.campaign.plan.clearance import body_points, child_profile, passes_near
-from twin.campaign.plan.formation import _Checks, _formation_ok, _places_ok, formation
+from calib.rotation import wrap_angle
+from twin.campaign.plan.clearance import (
+    body_points,
+    child_profile,
+    in_range,
+    passes_near,
+    robot_fits,
+    sight_clear,
+)
+from twin.campaign.plan.formation import SIGHT_MARGIN, formation
+from twin.campaign.plan.formation_checks import (
+    FORMATION_CLEARANCE,
+    MIN_SEPARATION,
+    FormationChecks,
+)
 from twin.campaign.plan.occlusion import unhidden_yaw
 from twin.campaign.plan.route import RoutePath
 from twin.campaign.plan.stop import Stop
 from twin.scenario import load_scenario
+from twin.scenario.schema import Space
 
 HALL = Path(__file__).resolve().parents[4] / "scenarios" / "paper_hall.toml"
 RANGE = (1.3, 2200.0)
@@ -51,6 +66,59 @@ def test_the_child_that_waits_does_not_hide_the_one_measured_first(hall):
     assert not passes_near(inst, prisms, waiting, child_profile(floor)).any()
     blocked = body_points(far.xy, far.yaw, cubes, floor)[0]
     assert passes_near(inst, blocked, waiting, child_profile(floor)).any()
+
+
+def _places_ok(
+    space: Space, places: list[NDArray[np.float64]], stations: list[NDArray[np.float64]]
+) -> bool:
+    """Whether the children's (2,) places (m) are free, 1 m apart and 1 m from each
+    instrument ((3,) positions, m)."""
+    xy = np.array(places)
+    if not robot_fits(space, xy, FORMATION_CLEARANCE).all():
+        return False
+    if np.linalg.norm(xy[0] - xy[1]) < 1.0:
+        return False
+    return all(np.min(np.linalg.norm(xy - inst[:2], axis=1)) >= 1.0 for inst in stations)
+
+
+def _formation_ok(
+    space: Space,
+    stops: list[Stop],
+    stations: list[NDArray[np.float64]],
+    cubes: NDArray[np.float64],
+    instrument_range: tuple[float, float],
+    waiting_xy: ArrayLike | None = None,
+    sight_margin: float = SIGHT_MARGIN,
+) -> bool:
+    """Whether the children's stops suit both stations, checked plainly, nothing kept: the
+    definition :class:`FormationChecks` must answer as. Their headings already keep every
+    prism clear of its own assembly (:func:`unhidden_yaw`)."""
+    xy = np.array([s.xy for s in stops])
+    if not _places_ok(space, list(xy), stations):
+        return False
+    floor = space.floor_z
+    if waiting_xy is not None:
+        far = body_points(stops[0].xy, stops[0].yaw, cubes, floor)[0]
+        if passes_near(stations[0], far, waiting_xy, child_profile(floor)).any():
+            return False
+    for inst in stations:
+        bearings = []
+        for k, stop in enumerate(stops):
+            pts = body_points(stop.xy, stop.yaw, cubes, floor)[0]
+            d = np.linalg.norm(pts - inst, axis=1)
+            if not in_range(d, instrument_range).all():
+                return False
+            if not sight_clear(space, inst, pts, sight_margin).all():
+                return False
+            other = xy[1 - k]
+            if passes_near(inst, pts, other, child_profile(floor)).any():
+                return False
+            v = stop.xy - inst[:2]
+            bearings.append(math.atan2(v[1], v[0]))
+        sep = abs(wrap_angle(bearings[0] - bearings[1]))
+        if sep < MIN_SEPARATION:
+            return False
+    return True
 
 
 def _plain_formation(space, cubes, path, s_next, here, there, direction, form, z, waiting, margins):
@@ -134,7 +202,7 @@ def test_the_pair_checks_kept_between_placements_answer_as_a_plain_check(hall):
     stops = [Stop(p, float(y)) for p, y in zip(xy, rng.uniform(-np.pi, np.pi, 24), strict=True)]
     # The waiting child stands on the lines of sight to the first stop.
     waiting = 0.5 * (stations[0][:2] + xy[0])
-    checks = _Checks(hall.space, cubes, stations, RANGE, waiting)
+    checks = FormationChecks(hall.space, cubes, stations, RANGE, waiting)
     # And each with a child just off its lines of sight from the current station, in front
     # (its crown hides a prism from an instrument at the prisms' height, or not quite), as
     # the one that moves first and second.
