@@ -33,16 +33,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from twin.campaign.aborted import NO_PROGRESS, NoProgress
+from twin.campaign.drives import LONG_DRIVE_M, TRACK_STEP_M
 from twin.campaign.paper_strategy import SHORTEST_LEG, halvings
+from twin.campaign.parent_fix import SIDESTEPS
 from twin.campaign.shooting import SEARCH_DEG
-from twin.campaign.travel import (
-    LONG_DRIVE_M,
-    NO_PROGRESS,
-    SIDESTEPS,
-    TRACK_STEP_M,
-    TURNS_DEG,
-    NoProgress,
-)
+from twin.campaign.travel import TURNS_DEG
 from twin.scenario.schema import Scenario
 
 __all__ = [
@@ -172,7 +168,7 @@ def leg_drives(children: int, corners: int, pieces: int) -> int:
 
 def stop_drives(pieces: int) -> int:
     """Most drives of a child's stop for a camera's data: a way with one corner, then the
-    turns to show its prisms (:meth:`twin.campaign.travel.Travel.drive_clear`,
+    turns to show its prisms (:meth:`twin.campaign.drives.Drives.drive_clear`,
     :meth:`~twin.campaign.travel.Travel.place_child_turning`)."""
     return 2 * pieces + len(TURNS_DEG)
 

@@ -10,20 +10,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
 from twin.campaign.control_points import ControlPoints
-from twin.campaign.journal import Journal
+from twin.campaign.drives import Drives
 from twin.campaign.plan.clearance import ROBOT_CLEARANCE, robot_fits
 from twin.campaign.shooting import oriented_on, same_marker
-from twin.hal.devices import MobileBase
-from twin.hal.readings import DriveResult
-from twin.hal.rig import Rig
 from twin.instruments.errors import InconsistentChildrenError, TiltOutOfRangeError
 from twin.localization.observation import ChildObservation
 from twin.localization.pose import ParentPose
-from twin.localization.sequence import CpsSequence
-from twin.scenario.schema import Space
 from twin.timing import timed
 
 SIDESTEPS = (0.4, -0.8)
@@ -34,24 +28,11 @@ FIX_ATTEMPTS = 2 + len(SIDESTEPS)
 once after each side step."""
 
 
-class ParentFix:
+class ParentFix(Drives):
     """The parent's fix, for :class:`twin.campaign.travel.Travel` (which provides the
-    devices, the CPS state, the journal, the map and the measurements)."""
+    measurements; the devices, the CPS state, the journal and the map are the drives')."""
 
-    rig: Rig
-    cps: CpsSequence
-    journal: Journal
-    space: Space
-    children: list[str]
     control_points: ControlPoints | None
-
-    def measure(self, child: str, parent: ParentPose | None = None) -> ChildObservation | None:
-        raise NotImplementedError
-
-    def _go(
-        self, base: MobileBase, goal_xy: NDArray[np.float64], goal_yaw: float | None = None
-    ) -> DriveResult:
-        raise NotImplementedError
 
     def fix_parent(self) -> bool:
         """The parent moved: measure the stationary children, solve its pose. Whether an

@@ -14,10 +14,10 @@ import pytest
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from tests.twin.campaign.drive_goals import recorded_goals
 from twin.campaign import Campaign, CampaignAborted
+from twin.campaign.drives import DETOUR_FACTOR, DETOUR_M
 from twin.campaign.plan.stop import Stop
 from twin.campaign.plan.ways import way_to
 from twin.campaign.strategy import StopPlan
-from twin.campaign.travel import DETOUR_FACTOR, DETOUR_M
 from twin.hal.readings import DriveStatus
 from twin.scenario import load_scenario
 from twin.scenario.schema import Obstacle

@@ -12,7 +12,7 @@ import pytest
 
 import twin.sim  # noqa: F401  (headless rendering is configured before MuJoCo loads)
 from twin.campaign import Campaign
-from twin.campaign.travel import LONG_DRIVE_M, TRACK_STEP_M
+from twin.campaign.drives import LONG_DRIVE_M, TRACK_STEP_M
 from twin.scenario import load_scenario
 from twin.sim.rig import build_sim_rig
 from twin.sim.world import build_world
