@@ -59,10 +59,29 @@ from twin.envs.stands import StandPlanner, rounded_std
 from twin.scenario import load_scenario
 from twin.scenario.schema import Scenario
 
-__all__ = ["PLANNERS", "RESET_OPTIONS", "REWARD_MODES", "CpsCampaignEnv", "check_options"]
+__all__ = [
+    "COST_PER_M",
+    "COST_PER_S",
+    "PLANNERS",
+    "RESET_OPTIONS",
+    "REWARD_MODES",
+    "CpsCampaignEnv",
+    "check_options",
+]
 
 REWARD_MODES = ("predicted", "truth")
 """The rewards an environment can give (see the module)."""
+
+COST_PER_S = 1e-3
+"""Default cost of campaign time, mm of mean camera error per second: an hour costs 3.6 mm,
+about what a few mm of a camera's world-frame error are worth (a calibrated camera is
+worth ``uncalibrated_error_mm`` less its error, some 20 mm, to the sum; the hall's
+campaigns take a few minutes). Small beside the reward of calibrating a camera or the cost
+of travel (:data:`COST_PER_M`), it makes a longer campaign pay for itself: of two
+campaigns with the same errors, the shorter one earns more."""
+
+COST_PER_M = 0.5
+"""Default cost of the parent's travel, mm of mean camera error per metre."""
 
 BUDGET_FACTOR = 2.5
 """Default travel budget, in lengths of the site's route."""
@@ -143,7 +162,8 @@ class CpsCampaignEnv(gym.Env):
         budget_m: the parent's travel allowed per episode, m (default
             :data:`BUDGET_FACTOR` times the route's length).
         cost_per_m, cost_per_s: the predicted reward's cost of travel (mm of mean
-            camera error per metre) and of time (per second).
+            camera error per metre, default :data:`COST_PER_M`) and of campaign time (per
+            second, default :data:`COST_PER_S`).
         uncalibrated_error_mm: the error counted for a camera not calibrated, mm.
         layout: the moves (default :class:`MoveLayout` with ``max_stations``).
         planner: one of :data:`PLANNERS`: ``campaign`` (default: the campaign itself) or
@@ -165,8 +185,8 @@ class CpsCampaignEnv(gym.Env):
         max_cameras: int = 8,
         max_stations: int = 12,
         budget_m: float | None = None,
-        cost_per_m: float = 0.5,
-        cost_per_s: float = 0.0,
+        cost_per_m: float = COST_PER_M,
+        cost_per_s: float = COST_PER_S,
         uncalibrated_error_mm: float = 1000.0,
         layout: MoveLayout | None = None,
         planner: str = "campaign",

@@ -28,7 +28,16 @@ from twin.envs.observation import CameraState, Stations, build_observations
 from twin.envs.site_stations import START, Station
 from twin.scenario.schema import Scenario
 
-__all__ = ["LEG", "VISIT", "Episode", "EpisodePlanner", "EpisodeSettings", "SiteShare"]
+__all__ = [
+    "LEG",
+    "MOVED_M",
+    "VISIT",
+    "Episode",
+    "EpisodePlanner",
+    "EpisodeSettings",
+    "SiteShare",
+    "calibrated_since_moved",
+]
 
 
 class SiteShare(Protocol):
@@ -50,6 +59,20 @@ VISIT = "visit"
 """A decision between travels: calibrate here, go somewhere, or end."""
 
 
+def calibrated_since_moved(calibrated_at: dict[str, float], camera: str, travelled: float) -> bool:
+    """Whether ``camera`` was calibrated and the parent has not moved since: its travel
+    (m) is the one recorded in ``calibrated_at`` (the parent's travel at each camera's last
+    calibration, m). ``calibrate`` is then forbidden: a repeated data set from the same
+    place would only draw the noise again (and the best of a camera's visits is the one
+    delivered)."""
+    at = calibrated_at.get(camera)
+    return at is not None and travelled - at < MOVED_M
+
+
+MOVED_M = 1e-6
+"""Travel of the parent after which the group has moved (a calibration can be repeated), m."""
+
+
 def visit_mask(
     mask: NDArray[np.bool_],
     layout: MoveLayout,
@@ -60,7 +83,8 @@ def visit_mask(
     left: float,
 ) -> None:
     """Set ``mask`` (n,) to the moves allowed between travels: ``calibrate`` where the
-    camera of the station ``here`` can be calibrated, a travel to each other station of
+    camera of the station ``here`` can be calibrated (and was not calibrated since the
+    group last moved: :func:`calibrated_since_moved`), a travel to each other station of
     ``order`` (``go_to``) and back to the start whose route ``distance`` (by the station's
     name, m) fits in what is ``left`` of the budget (m), and ``end``."""
     mask[:] = False

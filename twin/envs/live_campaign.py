@@ -34,7 +34,7 @@ from twin.campaign.strategy import (
     Return,
     Visit,
 )
-from twin.envs.episode import LEG, VISIT, visit_mask
+from twin.envs.episode import LEG, VISIT, calibrated_since_moved, visit_mask
 from twin.envs.leg_choices import LegChoices
 from twin.envs.moves import MoveLayout
 from twin.envs.site_stations import START, Station, site_stations
@@ -84,6 +84,10 @@ class LiveCampaign:
         self.stations = site_stations(scenario, self.strategy.path)
         self.order = tuple(name for name in self.stations if name != START)
         self.visits: dict[str, int] = {}
+        # Each camera's last calibration: the parent's travel then, m (recorded at the
+        # decision that follows it). Calibrating it again needs the group to have moved.
+        self.calibrated_at: dict[str, float] = {}
+        self._calibrating: str | None = None
         self.goal: Station | None = None
         self.decision: str | None = None
         self.mask = np.zeros(layout.size, dtype=bool)
@@ -158,6 +162,7 @@ class LiveCampaign:
             camera = station.camera
             assert camera is not None
             self.visits[camera] = self.visits.get(camera, 0) + 1
+            self._calibrating = camera
             self._answer(Visit(camera, self.visits[camera], station.xy.copy(), station.yaw))
         elif action == layout.end:
             self._answer(None)
@@ -206,13 +211,18 @@ class LiveCampaign:
         self.mask[:] = False
 
     def _visit_mask(self) -> None:
+        travelled = self.session.travelled
+        if self._calibrating is not None:
+            self.calibrated_at[self._calibrating], self._calibrating = travelled, None
         here = self.here()
+        camera = None if here is None else self.stations[here].camera
         visit_mask(
             self.mask,
             self.layout,
             self.order,
             here,
-            here is not None and self.stations[here].camera is not None,
+            camera is not None
+            and not calibrated_since_moved(self.calibrated_at, camera, travelled),
             lambda name: self.route_distance(self.stations[name]),
             self.budget_m - self.session.travelled,
         )

@@ -38,7 +38,7 @@ from twin.batch.steps import (
 )
 from twin.campaign.paper_strategy import ARRIVED
 from twin.campaign.plan.formation import sight_margins
-from twin.envs.episode import LEG, VISIT, EpisodePlanner, visit_mask
+from twin.envs.episode import LEG, VISIT, EpisodePlanner, calibrated_since_moved, visit_mask
 from twin.envs.moves import MoveLayout
 from twin.envs.site_stations import START, Station
 from twin.envs.stand_site import Stand, StandSite, TableLeg, site_for
@@ -90,6 +90,7 @@ class StandPlanner(EpisodePlanner):
         self.time = self.site.start_time
         self.travelled = 0.0
         self.visits: dict[str, int] = {}
+        self.calibrated_at: dict[str, float] = {}  # the parent's travel at each one's last, m
         self._goal: str | None = None
         self._travel: list[Stand] = []
         self._direction = 1.0
@@ -149,6 +150,7 @@ class StandPlanner(EpisodePlanner):
             camera = self.stations[here].camera
             assert camera is not None
             self.visits[camera] = self.visits.get(camera, 0) + 1
+            self.calibrated_at[camera] = self.travelled
             steps = self.site.data_steps(here, self.visits[camera])
             data = self.site.data[here]
             self.time += data.time
@@ -190,12 +192,16 @@ class StandPlanner(EpisodePlanner):
                 mask[layout.end] = True  # no room for any formation: the campaign ends
         elif self.decision == VISIT:
             here = self.here()
+            camera = None if here is None else self.stations[here].camera
             visit_mask(
                 mask,
                 layout,
                 self.order,
                 here,
-                here is not None and here in self.site.data,
+                here is not None
+                and here in self.site.data
+                and camera is not None
+                and not calibrated_since_moved(self.calibrated_at, camera, self.travelled),
                 self.site.distances(self._stand).__getitem__,
                 self.budget_m - self.travelled,
             )

@@ -372,7 +372,7 @@ def test_truth_reward_is_the_mean_true_camera_error_at_the_end():
 
 
 def test_predicted_reward_is_the_decrease_of_the_predicted_error_less_the_travel():
-    env = CpsCampaignEnv(SMOKE, cost_per_m=2.0, uncalibrated_error_mm=800.0)
+    env = CpsCampaignEnv(SMOKE, cost_per_m=2.0, cost_per_s=0.0, uncalibrated_error_mm=800.0)
     _, rewards, infos = rollout(env, 8, policy="paper")
     predicted = np.mean([s.predicted_error for s in env.camera_states()]) * 1e3
     travel = infos[-1]["distance_m"]
