@@ -232,7 +232,7 @@ class CpsCampaignEnv(gym.Env):
     # -- episodes ---------------------------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
         """Start a campaign. ``options["scenario"]``: a scenario file, a
         :class:`Scenario` or ``"random"`` for this episode (default: the environment's).
 
@@ -322,7 +322,7 @@ class CpsCampaignEnv(gym.Env):
 
     def step(
         self, action: int
-    ) -> tuple[dict[str, NDArray[np.float64]], float, bool, bool, dict[str, Any]]:
+    ) -> tuple[dict[str, NDArray[np.float32]], float, bool, bool, dict[str, Any]]:
         """Take a move (see :mod:`twin.envs.moves`).
 
         Raises:

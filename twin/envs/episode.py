@@ -24,7 +24,7 @@ from twin.batch.steps import BatchPlan, Calibrate, Step
 from twin.envs.free_space import FreeSpace
 from twin.envs.knowledge import BatchKnowledge, Knowledge
 from twin.envs.moves import MoveLayout
-from twin.envs.observation import CameraState, Stations, build_observations
+from twin.envs.observation import CameraState, SiteScale, Stations, build_observations
 from twin.envs.site_stations import START, Station
 from twin.scenario.schema import Scenario
 
@@ -237,6 +237,7 @@ class Episode:
     ) -> None:
         self.scenario, self.trial_seed, self.planner = scenario, trial_seed, planner
         self.free_space, self.settings = free_space, settings
+        self.site_scale = SiteScale.of(scenario.space)
         self.start_steps = planner.take_pending()
         self.moves: list[int] = []
         self.steps: list[Step] = []
@@ -451,7 +452,7 @@ class Episode:
 
     def observations(
         self, rows: list[int], episodes: list[Episode] | None = None
-    ) -> dict[str, NDArray[np.float64]]:
+    ) -> dict[str, NDArray[np.float32]]:
         """The observations of ``rows`` of the episode's batch, each entry (R, ...): the
         episode's own and those of other episodes of its site whose trials are rows of the
         same batch (``episodes``, one a row; default this one for every row)."""
@@ -484,8 +485,10 @@ class Episode:
             ),
             max_stations=self.settings.layout.max_stations,
             free_space=self.free_space.rays(known.parent_xy[rows], known.parent_yaw[rows]),
+            site=self.site_scale,
+            budget_m=self.planner.budget_m,
         )
 
-    def observation(self) -> dict[str, NDArray[np.float64]]:
+    def observation(self) -> dict[str, NDArray[np.float32]]:
         """The episode's own observation."""
         return {k: v[0] for k, v in self.observations([self.row]).items()}

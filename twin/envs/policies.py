@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from twin.envs.campaign_env import CpsCampaignEnv
 from twin.envs.site_stations import visit_stations
 
-Actor = Callable[[dict[str, NDArray[np.float64]], dict[str, Any]], int]
+Actor = Callable[[dict[str, NDArray[np.float32]], dict[str, Any]], int]
 """Chooses a move from an observation and an info."""
 
 Policy = Callable[[CpsCampaignEnv, int], Actor]
@@ -61,7 +61,7 @@ def _in_order(env: CpsCampaignEnv, formation: str) -> Actor:
     state = {"next": 0}
     layout = env.layout
 
-    def act(obs: dict[str, NDArray[np.float64]], info: dict[str, Any]) -> int:
+    def act(obs: dict[str, NDArray[np.float32]], info: dict[str, Any]) -> int:
         if info["decision"] == "leg":
             return _leg(env, info, formation, 1.0)
         assert env.planner is not None
@@ -95,7 +95,7 @@ def greedy(env: CpsCampaignEnv, seed: int) -> Actor:
     longest = max(layout.step_factors)
     tried: set[str] = set()  # stations calibrated from: their campaign would be the same
 
-    def act(obs: dict[str, NDArray[np.float64]], info: dict[str, Any]) -> int:
+    def act(obs: dict[str, NDArray[np.float32]], info: dict[str, Any]) -> int:
         if info["decision"] == "leg":
             return _leg(env, info, "in_line", longest)
         planner = env.planner
@@ -140,7 +140,7 @@ def random(env: CpsCampaignEnv, seed: int) -> Actor:
     """A move drawn uniformly from the allowed ones, from its own generator."""
     rng = np.random.default_rng(seed)
 
-    def act(obs: dict[str, NDArray[np.float64]], info: dict[str, Any]) -> int:
+    def act(obs: dict[str, NDArray[np.float32]], info: dict[str, Any]) -> int:
         return int(rng.choice(np.flatnonzero(info["action_mask"])))
 
     return act

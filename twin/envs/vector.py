@@ -122,7 +122,7 @@ class CpsCampaignVectorEnv(VectorEnv):
         *,
         seed: int | list[int | None] | None = None,
         options: dict[str, Any] | None = None,
-    ) -> tuple[dict[str, NDArray[np.float64]], dict[str, Any]]:
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
         """Start every episode; ``seed`` an int (episode k gets ``seed + k``), a list, or
         None; ``options`` as :meth:`CpsCampaignEnv.reset`'s, for every episode.
 
@@ -246,7 +246,7 @@ class CpsCampaignVectorEnv(VectorEnv):
     def step(
         self, actions: NDArray[np.int64]
     ) -> tuple[
-        dict[str, NDArray[np.float64]],
+        dict[str, NDArray[np.float32]],
         NDArray[np.float64],
         NDArray[np.bool_],
         NDArray[np.bool_],
@@ -322,17 +322,17 @@ class CpsCampaignVectorEnv(VectorEnv):
         return checked
 
     # -- what comes back -----------------------------------------------------------------------
-    def _observations(self) -> dict[str, NDArray[np.float64]]:
+    def _observations(self) -> dict[str, NDArray[np.float32]]:
         """Every episode's observation, those of a site's episodes built at once (their
         rows of its batch)."""
-        out: dict[str, NDArray[np.float64]] = {}
+        out: dict[str, NDArray[np.float32]] = {}
         for pool in self._pools.values():
             indices = sorted(pool.members)
             episodes = [self._episode(k) for k in indices]
             part = episodes[0].observations([e.row for e in episodes], episodes)
             for key, values in part.items():
                 if key not in out:
-                    out[key] = np.zeros((self.num_envs, *values.shape[1:]))
+                    out[key] = np.zeros((self.num_envs, *values.shape[1:]), dtype=np.float32)
                 out[key][indices] = values
         return out
 
