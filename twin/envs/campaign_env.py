@@ -54,6 +54,7 @@ from twin.envs.observation import (
     observation_space,
 )
 from twin.envs.planner import CampaignPlanner
+from twin.envs.scenario_paths import resolve_scenario_path
 from twin.envs.sites import random_site
 from twin.envs.stands import StandPlanner, rounded_std
 from twin.scenario import load_scenario
@@ -101,8 +102,10 @@ RESET_OPTIONS = ("scenario",)
 """The keys ``reset(options=...)`` knows (see :meth:`CpsCampaignEnv.reset`)."""
 
 
-def _scenario(spec: str | Path | Scenario | None) -> Scenario | None:
-    """A scenario from a path or a scenario; None for random sites.
+def _scenario(spec: str | Path | Scenario | None, near: Scenario | None = None) -> Scenario | None:
+    """A scenario from a path or a scenario; None for random sites. A relative path is
+    found as :func:`twin.envs.scenario_paths.resolve_scenario_path` says (``near``: the
+    environment's own scenario, whose folder is tried).
 
     Raises:
         ValueError: ``spec`` is none of these.
@@ -117,13 +120,13 @@ def _scenario(spec: str | Path | Scenario | None) -> Scenario | None:
             f"scenario {spec!r}: expected a scenario file (str or Path), a Scenario, "
             f"{RANDOM!r} or None, got {type(spec).__name__}"
         )
-    return load_scenario(spec)
+    return load_scenario(resolve_scenario_path(spec, near.source if near is not None else None))
 
 
-def check_options(options: object) -> dict[str, Any]:
+def check_options(options: object, near: Scenario | None = None) -> dict[str, Any]:
     """The options of a reset, checked: None or a mapping whose keys are
     :data:`RESET_OPTIONS`; its scenario read (a :class:`Scenario`, or None for a random
-    site).
+    site; a relative path is also tried next to ``near``'s file).
 
     Raises:
         ValueError: ``options`` is not a mapping, or has a key it does not know, or its
@@ -144,7 +147,7 @@ def check_options(options: object) -> dict[str, Any]:
             )
     checked = dict(options)
     if "scenario" in checked:
-        checked["scenario"] = _scenario(checked["scenario"])
+        checked["scenario"] = _scenario(checked["scenario"], near)
     return checked
 
 
@@ -240,7 +243,7 @@ class CpsCampaignEnv(gym.Env):
             ValueError: ``options`` is not a dict, or has a key other than
                 :data:`RESET_OPTIONS`, or its scenario is not one.
         """
-        options = check_options(options)
+        options = check_options(options, self.default_scenario)
         super().reset(seed=seed)
         episode = self._start_episode(*self.draw(options))
         return episode.observation(), episode.info()

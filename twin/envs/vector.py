@@ -131,7 +131,7 @@ class CpsCampaignVectorEnv(VectorEnv):
                 (nothing is reset).
         """
         if options is not None:
-            options = check_options(options)
+            options = check_options(options, self.envs[0].default_scenario)
         if seed is None:
             seeds: list[int | None] = [None] * self.num_envs
         elif isinstance(seed, int):
