@@ -148,6 +148,42 @@ class CpsCampaignVectorEnv(VectorEnv):
             infos = self._add_info(infos, self._episode(k).info(), k)
         return self._observations(), infos
 
+    def reset_episodes(
+        self,
+        indices: list[int],
+        seeds: list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, Any]]:
+        """Start new episodes for ``indices`` now (the others go on with theirs): each as
+        :meth:`CpsCampaignEnv.reset` with its seed (None: the next of its generator) and
+        ``options``. Every episode's observation and info come back; an episode that ended
+        at the last step and is reset here is not reset again at the next step (a reset in
+        the same step, as Stable-Baselines3 expects).
+
+        Raises:
+            ValueError: an index outside ``0 .. num_envs - 1`` or repeated, seeds that are
+                not one an index, or options :meth:`CpsCampaignEnv.reset` refuses
+                (nothing is reset).
+        """
+        indices = [int(k) for k in indices]
+        if any(not 0 <= k < self.num_envs for k in indices) or len(set(indices)) < len(indices):
+            raise ValueError(
+                f"episodes {indices}: expected distinct indices in 0 .. {self.num_envs - 1}"
+            )
+        if seeds is None:
+            seeds = [None] * len(indices)
+        if len(seeds) != len(indices):
+            raise ValueError(f"{len(seeds)} seeds for {len(indices)} episodes")
+        if options is not None:
+            options = check_options(options, self.envs[0].default_scenario)
+        if indices:
+            self._run(self._start(indices, list(seeds), options))
+            self._autoreset[indices] = False
+        infos: dict[str, Any] = {}
+        for k in range(self.num_envs):
+            infos = self._add_info(infos, self._episode(k).info(), k)
+        return self._observations(), infos
+
     def _start(
         self, indices: list[int], seeds: list[int | None], options: dict[str, Any] | None
     ) -> dict[int, _Starts]:
