@@ -115,6 +115,7 @@ def run_trial(spec: TrialSpec) -> TrialResult:
                 advertised_noise=spec.scenario.noise,
                 strategy=spec.strategy,
                 cameras=False,
+                foxglove=False,
             )
         except Exception as exc:
             alone = "" if spec.config == "all" else f" (with {spec.config} noise alone)"

@@ -60,6 +60,7 @@ def run_campaign(
     overwrite: bool,
     cameras: bool = True,
     *,
+    foxglove: bool = True,
     live: LiveServer | None = None,
 ) -> dict[str, Any]:
     """Run the campaign on the rig ``open_rig`` gives, log it, and write its outputs.
@@ -72,15 +73,15 @@ def run_campaign(
         open_rig: given the log, opens the devices and returns them, what closes them, and
             the backend's timings (filled as it runs). The devices are closed (robots
             stopped) however the campaign ends, Ctrl-C included; the log keeps what came.
-        strategy: the campaign's strategy. progress, report, overwrite, cameras, live:
-            as :func:`twin.run.runner.run_scenario`.
+        strategy: the campaign's strategy. progress, report, overwrite, cameras,
+            foxglove, live: as :func:`twin.run.runner.run_scenario`.
     """
     folder = claim_folder(Path(out_dir), "run", RUN_OUTPUTS, arguments, overwrite=overwrite)
     with folder:  # held until the run ends, however it ends
         out = folder.path
         log_path = out / "log.mcap"
         t0 = time.perf_counter()
-        stream = FoxgloveStream(sc)
+        stream = FoxgloveStream(sc) if foxglove else None
         if live is not None and stream is not None:
             stream = live.tee(stream)
         with McapRecorder(log_path, foxglove=stream) as log:

@@ -58,6 +58,7 @@ def run_scenario(
     adapt_rig: Callable[[SimRig], Rig] | None = None,
     overwrite: bool = False,
     cameras: bool = True,
+    foxglove: bool = True,
     live: LiveServer | None = None,
 ) -> dict[str, Any]:
     """Run the campaign of ``scenario`` in the twin and write its outputs in ``out_dir``.
@@ -85,6 +86,8 @@ def run_scenario(
         overwrite: replace what an earlier run wrote in ``out_dir``.
         cameras: write ``cameras/`` (a Monte-Carlo trial, which reads only the results and
             the log, does not).
+        foxglove: write Foxglove's channels in the log beside the records (a Monte-Carlo
+            trial, whose log no one opens, does not).
         live: also serve the log's Foxglove channels on this server as they are written
             (the log and the results are the same without it).
 
@@ -134,6 +137,7 @@ def run_scenario(
         report,
         overwrite,
         cameras,
+        foxglove=foxglove,
         live=live,
     )
 

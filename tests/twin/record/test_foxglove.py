@@ -4,6 +4,7 @@ converts with ``twin replay --foxglove``."""
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from pathlib import Path
@@ -39,6 +40,23 @@ def run(tmp_path_factory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("fox")
     results = run_scenario(SMOKE, out, fidelity="geometric", report=False, seed=5)
     return out, results
+
+
+def run_results(folder: Path) -> dict:
+    """A run's results without what the machine's clock put in them."""
+    results = json.loads((folder / "results.json").read_text())
+    results.pop("wall_time_s"), results.pop("timings_s")
+    return results
+
+
+def run_records(folder: Path) -> list[tuple[str, float, dict]]:
+    """A run's records (topic, time, data) without what the machine's clock put in them."""
+    kept = []
+    for m in read_log(folder / "log.mcap").messages:
+        data = {k: v for k, v in m.data.items() if k not in ("started", "wall_time_s")}
+        data.pop("timings_s", None)
+        kept.append((m.topic, m.timestamp, data))
+    return kept
 
 
 def foxglove(path: Path) -> dict[str, list[tuple[str, int, Any, bytes]]]:
@@ -102,6 +120,18 @@ def test_the_log_holds_foxglove_channels_with_their_schemas(run):
     }
     # The records read back as before: read_log leaves the Foxglove channels out.
     assert not [t for t in read_log(out / "log.mcap").topics if t.startswith("/foxglove")]
+
+
+def test_a_run_without_the_channels_has_the_same_records_and_results(run, tmp_path):
+    # A Monte-Carlo trial's settings: its log is read for the rows and thrown away.
+    out, _ = run
+    plain = tmp_path / "plain"
+    run_scenario(
+        SMOKE, plain, fidelity="geometric", report=False, seed=5, foxglove=False, cameras=False
+    )
+    assert foxglove(plain / "log.mcap") == {}
+    assert run_records(plain) == run_records(out)
+    assert run_results(plain) == run_results(out)
 
 
 def test_a_calibrated_camera_frame_is_its_results_pose(run):

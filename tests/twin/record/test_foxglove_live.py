@@ -18,8 +18,8 @@ from mcap.reader import make_reader
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
+from tests.twin.record.test_foxglove import run_records, run_results
 from twin.cli import main
-from twin.record import read_log
 from twin.record.foxglove import TOPICS
 from twin.record.foxglove.live import LiveServer
 from twin.run.runner import run_scenario
@@ -156,22 +156,8 @@ def test_the_server_stops_with_the_run(live_run, capsys):
 
 def test_the_results_and_the_log_are_the_same_without_the_server(live_run, plain_run):
     out = live_run[0]
-
-    def results(folder: Path) -> dict:
-        r = json.loads((folder / "results.json").read_text())
-        r.pop("wall_time_s"), r.pop("timings_s")
-        return r
-
-    def records(folder: Path) -> list[tuple[str, float, dict]]:
-        kept = []
-        for m in read_log(folder / "log.mcap").messages:
-            data = {k: v for k, v in m.data.items() if k not in ("started", "wall_time_s")}
-            data.pop("timings_s", None)
-            kept.append((m.topic, m.timestamp, data))
-        return kept
-
-    assert results(out) == results(plain_run)
-    assert records(out) == records(plain_run)
+    assert run_results(out) == run_results(plain_run)
+    assert run_records(out) == run_records(plain_run)
     assert log_foxglove(out / "log.mcap") == log_foxglove(plain_run / "log.mcap")
 
 
