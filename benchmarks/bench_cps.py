@@ -7,7 +7,8 @@ position and yaw errors over a Monte Carlo, the predicted (1 sigma) position err
 mean NEES of the final position (3 when the predicted covariance is right) and of the final
 yaw (1), the number of runs stopped by a consistency error (on these clean data a false
 alarm; about 4 expected per 500 runs at the default rate 1e-4), and the wall time of one
-CPS step (children placed + parent solved, with covariance propagation).
+CPS step per run (children placed + parent solved, with covariance propagation; all runs
+solved at once).
 
 Run:  .venv/bin/python benchmarks/bench_cps.py [--runs 500] [--seed 0]
 """

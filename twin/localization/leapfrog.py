@@ -44,9 +44,10 @@ from calib.rotation import rot_z, wrap_angle
 from twin.instruments.consistency import (
     DEFAULT_FALSE_ALARM_RATE,
     check_false_alarm_rate,
+    exceeds_threshold,
     raise_if_inconsistent,
 )
-from twin.instruments.errors import ConsistencyError, FailureReason, InconsistentMarkerError
+from twin.instruments.errors import FailureReason, InconsistentMarkerError
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import MARKER_DOF, marker_consistency_chi2
 from twin.instruments.noise import cartesian_covariance
@@ -54,7 +55,13 @@ from twin.instruments.polar import polar2cartesian
 from twin.instruments.shot import measure_points
 from twin.instruments.tilt import tilt_rotation
 from twin.instruments.total_station import ARCSEC, InclinometerSpec, TotalStationSpec
-from twin.localization.observation import ChildObservation, reference_from_cubes
+from twin.localization.input_checks import DEFAULT_MIN_BASELINE, coincide_message
+from twin.localization.joint_state import CpsBatch
+from twin.localization.observation import (
+    ChildObservation,
+    ChildObservationBatch,
+    reference_from_cubes,
+)
 from twin.localization.sequence import CpsSequence
 
 CHILDREN = ("child1", "child2")
@@ -310,7 +317,8 @@ class LeapfrogResult:
         position_error: (R, 3) estimated minus true final position, m.
         yaw_error: (R,) estimated minus true final yaw, rad.
         covariance: (R, 4, 4) predicted covariance of (yaw, x, y, z).
-        seconds_per_step: mean wall time of one CPS step (children + parent update), s.
+        seconds_per_step: wall time of all the runs over their number and the steps of one
+            (children + parent update, every run solved at once), s.
         rejected_runs: indices of the runs stopped by a consistency error.
         rejected_reasons: the reason for each of ``rejected_runs``.
     """
@@ -352,38 +360,66 @@ def evaluate(
     solver: str,
     false_alarm_rate: float | None = DEFAULT_FALSE_ALARM_RATE,
 ) -> LeapfrogResult:
-    """Run the estimator over every run of ``data`` and collect the final errors.
+    """Run the estimator over every run of ``data`` at once and collect the final errors.
 
-    A run stopped by a consistency error is counted in ``rejected_runs`` and left out.
+    All runs are solved together (:class:`CpsBatch`); a run counts as stopped at its first
+    consistency error, where :func:`run_cps` would raise, in the same order of tests (the
+    markers before each children step, the markers then the children at each parent
+    step). It is counted in ``rejected_runs`` and left out.
+
+    Raises:
+        ValueError: a run that was not stopped lost its solution (the children coincide).
     """
+    rate = check_false_alarm_rate(false_alarm_rate)
     r = data.n_runs
-    pos_err = np.empty((r, 3))
-    yaw_err = np.empty(r)
-    cov = np.empty((r, 4, 4))
-    done = np.zeros(r, dtype=bool)
-    rejected: list[int] = []
-    reasons: list[FailureReason] = []
+    reason: list[FailureReason | None] = [None] * r
+    stopped = np.zeros(r, dtype=bool)
+
+    def stop(flags: NDArray[np.bool_], why: FailureReason) -> None:
+        for i in np.flatnonzero(flags & ~stopped):
+            reason[i] = why
+        stopped[:] |= flags
+
+    def observe(points: NDArray, cov: NDArray, k: int, t: float) -> list[ChildObservationBatch]:
+        return [
+            ChildObservationBatch(name, points[:, k, i], cov[:, k, i], t)
+            for i, name in enumerate(CHILDREN)
+        ]
+
     start = time.perf_counter()
-    for i in range(r):
-        try:
-            seq = run_cps(data, i, solver, false_alarm_rate)
-        except ConsistencyError as error:
-            rejected.append(i)
-            reasons.append(error.reason)
-            continue
-        final = seq.parent
-        truth = data.parent_truth[i, -1]
-        pos_err[i] = final.translation - truth[1:]
-        yaw_err[i] = wrap_angle(final.yaw - truth[0])
-        cov[i] = final.covariance
-        done[i] = True
+    batch = CpsBatch(CHILDREN, r, solver=solver, false_alarm_rate=rate)
+    for k in range(data.config.n_steps):
+        t0 = 2.0 * k * STEP_DURATION
+        for i in range(len(CHILDREN)):
+            stop(
+                exceeds_threshold(data.before_marker_chi2[:, k, i], MARKER_DOF, rate),
+                FailureReason.INCONSISTENT_MARKER,
+            )
+        batch.children_moved(observe(data.before, data.before_cov, k, t0))
+        for i in range(len(CHILDREN)):
+            stop(
+                exceeds_threshold(data.after_marker_chi2[:, k, i], MARKER_DOF, rate),
+                FailureReason.INCONSISTENT_MARKER,
+            )
+        solution = batch.parent_moved(observe(data.after, data.after_cov, k, t0 + STEP_DURATION))
+        lost = solution.poor_geometry & ~stopped
+        if lost.any():
+            raise ValueError(
+                f"run {int(np.flatnonzero(lost)[0])}, step {k}: "
+                + coincide_message(solution.baseline[lost][0], DEFAULT_MIN_BASELINE)
+            )
+        stop(solution.inconsistent, FailureReason.INCONSISTENT_CHILDREN)
     elapsed = time.perf_counter() - start
+    final = batch.parent
+    truth = data.parent_truth[:, -1]
+    done = ~stopped
+    rejected = np.flatnonzero(stopped)
     return LeapfrogResult(
         solver,
-        pos_err[done],
-        yaw_err[done],
-        cov[done],
+        final.translation[done] - truth[done, 1:],
+        wrap_angle(final.yaw[done] - truth[done, 0]),
+        final.covariance[done],
         elapsed / (r * data.config.n_steps),
-        tuple(rejected),
-        tuple(reasons),
+        tuple(int(i) for i in rejected),
+        tuple(reason[i] for i in rejected),  # type: ignore[misc]
     )
