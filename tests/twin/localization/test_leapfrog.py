@@ -5,6 +5,7 @@ import pytest
 from scipy.stats import chi2, norm, poisson
 
 from twin.instruments.consistency import DEFAULT_FALSE_ALARM_RATE
+from twin.instruments.errors import ConsistencyError, FailureReason
 from twin.instruments.total_station import ARCSEC
 from twin.localization.leapfrog import (
     Formation,
@@ -133,6 +134,30 @@ def test_simulation_is_reproducible_bit_for_bit():
     assert not np.array_equal(a.after, c.after)
     ra, rb = evaluate(a, "wls"), evaluate(b, "wls")
     np.testing.assert_array_equal(ra.position_error, rb.position_error)
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_all_runs_at_once_stop_and_end_as_each_run_alone(solver):
+    # At a false-alarm rate of 2 % about half the runs stop, on a marker or on the children.
+    data = simulate_leapfrog(LeapfrogConfig(), 24, np.random.default_rng(11))
+    res = evaluate(data, solver, false_alarm_rate=0.02)
+    kept, reasons = [], {}
+    for run in range(data.n_runs):
+        try:
+            kept.append(run_cps(data, run, solver, false_alarm_rate=0.02).parent)
+        except ConsistencyError as error:
+            reasons[run] = error.reason
+    assert res.rejected_runs == tuple(reasons)
+    assert res.rejected_reasons == tuple(reasons.values())
+    assert set(reasons.values()) == {
+        FailureReason.INCONSISTENT_MARKER,
+        FailureReason.INCONSISTENT_CHILDREN,
+    }
+    truth = np.delete(data.parent_truth[:, -1], list(reasons), axis=0)
+    np.testing.assert_allclose(
+        res.position_error, [p.translation for p in kept] - truth[:, 1:], rtol=0, atol=1e-12
+    )
+    np.testing.assert_allclose(res.covariance, [p.covariance for p in kept], rtol=1e-9, atol=0)
 
 
 def test_one_run_is_a_full_cps_record():
