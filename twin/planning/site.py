@@ -99,6 +99,11 @@ spread over half the view's width and depth, which a calibration needs; the plan
 lowers the scenario's ``calibration.min_visible_fraction`` to what its stations see. A
 camera no station sees this much of is left out of the plan, named."""
 
+StopsSeen = dict[tuple[str, bytes], list[NDArray[np.float64]]]
+"""The data stops' (2,) places found from a station, by camera name and the station's (2,)
+place (its bytes), in one W: what the station search found, kept for the check of the
+stations once the start is known."""
+
 
 @dataclass(frozen=True)
 class SitePlan:
@@ -226,8 +231,9 @@ def plan_site(
     if start is None:
         # Stations first, in the map's frame; then the start just before the first of the
         # best open tour over them, so that the route runs on rather than back and forth.
+        seen: StopsSeen = {}
         in_map, hidden = _stations(
-            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid
+            cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid, seen=seen
         )
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
         graph = RouteGraph(passable)
@@ -241,11 +247,13 @@ def plan_site(
         cut = [
             c
             for c in in_map
-            if not _gives_data_from(cameras, c, in_map[c].xy, boxed, child_free, floor_z, home)
+            if not _gives_data_from(
+                cameras, c, in_map[c].xy, boxed, child_free, floor_z, home, seen
+            )
         ]
         if cut:
             again, _ = _stations(
-                cameras, cut, MapPose(), boxed, station_free, child_free, floor_z, avoid, home
+                cameras, cut, MapPose(), boxed, station_free, child_free, floor_z, avoid, home, seen
             )
             in_map = {**in_map, **again}
         stations = {
@@ -361,6 +369,7 @@ def _stations(
     floor_z: float,
     avoid: Mapping[str, Sequence[Sequence[float]]] | None = None,
     start: NDArray[np.float64] | None = None,
+    seen: StopsSeen | None = None,
 ) -> tuple[dict[str, Station], dict[str, str]]:
     """Each chosen camera's station in the frame ``pose`` makes W: on the roomy floor
     (``station_free[0]``) where one there sees :data:`STATION_NEED`, else on the floor the
@@ -369,8 +378,10 @@ def _stations(
     frame; ``boxed``: the map's blocked floor in that W); one from which the children
     reach the data stops past the standing parent (:func:`stops_reached` on
     ``child_free``, map frame, where a child's centre may be; from the side of ``start``,
-    the parent's start in that W, where it is known). Returns the stations by camera
-    name, and the cameras with none, each with why (the best fraction found and where)."""
+    the parent's start in that W, where it is known). ``seen``: the data stops found from
+    each (camera, place) in this W, read and added to (default: none kept). Returns the
+    stations by camera name, and the cameras with none, each with why (the best fraction
+    found and where)."""
     space = _space(boxed, floor_z)
     by_name = {str(c["name"]): c for c in cameras}
     marker = MarkerConfig()
@@ -387,15 +398,23 @@ def _stations(
         best: Station | None = None
         why = "no place the robots reach near its floor view"
 
-        def gives_data(xy: NDArray[np.float64], camera: TsaiCamera = camera) -> int:
+        def gives_data(
+            xy: NDArray[np.float64], camera: TsaiCamera = camera, name: str = name
+        ) -> int:
             # The campaign's own planner of data stops, from the station (no anchor yet),
             # and whether the children reach them past the standing parent.
-            stops = partial_view_stops(
-                space, assembly, instrument_range, camera, xy, floor_z + INSTRUMENT_HEIGHT, None
-            )
+            key = (name, xy.tobytes())
+            stops = None if seen is None else seen.get(key)
+            if stops is None:
+                found = partial_view_stops(
+                    space, assembly, instrument_range, camera, xy, floor_z + INSTRUMENT_HEIGHT, None
+                )
+                stops = [s.stop.xy for s in found]
+                if seen is not None:
+                    seen[key] = stops
             if not stops:
                 return 0
-            reached = stops_reached(child_w, xy, [s.stop.xy for s in stops], start)
+            reached = stops_reached(child_w, xy, stops, start)
             return REACHED if reached else 1
 
         # The roomy floor first, then all the parent reaches; where no station sees
@@ -448,9 +467,14 @@ def _gives_data_from(
     child_free: BaseGeometry,
     floor_z: float,
     start: NDArray[np.float64],
+    seen: StopsSeen | None = None,
 ) -> bool:
     """Whether the children, coming with the parent from ``start``, reach camera ``name``'s
-    data stops from ``station`` (:func:`stops_reached`; all in the map's frame)."""
+    data stops from ``station`` (:func:`stops_reached`; all in the map's frame); the stops
+    as ``seen`` holds them where the station search found them there."""
+    stops = None if seen is None else seen.get((name, station.tobytes()))
+    if stops is not None:
+        return not stops or stops_reached(child_free, station, stops, start)
     by_name = {str(c["name"]): c for c in cameras}
     camera = validate_model(CameraConfig, camera_in_world(by_name[name], MapPose(), floor_z)).tsai()
     ts = Noise().total_station
