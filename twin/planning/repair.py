@@ -120,6 +120,7 @@ def trial_run(scenario: Scenario) -> TrialRun:
             advertised_noise=scenario.noise,
             report=False,
             overwrite=True,
+            cameras=False,
         )
         messages = read_log(Path(tmp) / "log.mcap").messages
     pixel = {c.name: scenario.projected_led_px(c.name) for c in scenario.cameras}
