@@ -121,6 +121,7 @@ def trial_run(scenario: Scenario) -> TrialRun:
             report=False,
             overwrite=True,
             cameras=False,
+            foxglove=False,
         )
         messages = read_log(Path(tmp) / "log.mcap").messages
     pixel = {c.name: scenario.projected_led_px(c.name) for c in scenario.cameras}
