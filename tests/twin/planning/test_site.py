@@ -328,17 +328,18 @@ def test_the_data_stops_from_a_station_are_planned_once(tmp_path, monkeypatch):
     # The stations are chosen before the start, then each is checked from the start's side:
     # the check reads the stops the search planned from the station, not planned again.
     import twin.planning.site as site_module
+    import twin.planning.site_stations as stations_module
     from twin.planning.maps import load_map
     from twin.planning.sample_floor import write_floor
 
     planned = []
-    plan_stops = site_module.partial_view_stops
+    plan_stops = stations_module.partial_view_stops
 
     def counted(space, assembly, reach, camera, xy, *rest):
         planned.append((camera.world2cam_t.tobytes(), np.asarray(xy).tobytes()))
         return plan_stops(space, assembly, reach, camera, xy, *rest)
 
-    monkeypatch.setattr(site_module, "partial_view_stops", counted)
+    monkeypatch.setattr(stations_module, "partial_view_stops", counted)
     map_yaml, cameras = write_floor(tmp_path / "floor", 3)
     plan = site_module.plan_site(load_map(map_yaml), site_module.read_cameras(cameras))
     assert sorted(plan.stations) == ["cam1", "cam2", "cam3"]

@@ -13,7 +13,7 @@ from twin.campaign.plan.accurate_stops import partial_view_stops
 from twin.planning import floor_shapes
 from twin.planning.boxes import boxed_space
 from twin.planning.frames import MapPose
-from twin.planning.site import _space
+from twin.planning.site_stations import map_space
 from twin.planning.stations import REACHED, NoStationError, choose_station
 from twin.scenario.loader import validate_model
 from twin.scenario.robots import INSTRUMENT_HEIGHT
@@ -34,7 +34,7 @@ PRISM_HEIGHT = float(np.mean([c[2] for c in MARKER.cubes]))
 @pytest.fixture(scope="module")
 def site():
     free = floor_shapes.u_turn(WIDTH)
-    space = _space(boxed_space(floor_shapes.floor_map(free), MapPose(), 0.1), FLOOR_Z)
+    space = map_space(boxed_space(floor_shapes.floor_map(free), MapPose(), 0.1), FLOOR_Z)
     return space, free.buffer(-0.45)
 
 
