@@ -123,10 +123,11 @@ def test_a_killed_run_keeps_what_it_measured(tmp_path):
     log = out / "log.mcap"
     deadline = time.time() + 120
     try:
-        # The log's first 80 kB hold some 35 complete shots (40 kB only 15: killed right
-        # at that size, a run kept too few for the test below); the run writes about 1 MB.
+        # The log's first 160 kB hold some 45 complete shots beside Foxglove's messages
+        # (80 kB only 18: killed right at that size, a run kept too few for the test
+        # below); the run writes about 1.7 MB.
         while time.time() < deadline and proc.poll() is None:
-            if log.exists() and log.stat().st_size > 80_000:
+            if log.exists() and log.stat().st_size > 160_000:
                 break
             time.sleep(0.05)
         assert proc.poll() is None, "the run finished before it could be killed"

@@ -11,6 +11,7 @@ import pytest
 from tests.twin.planning.test_site import CAMERAS, write_cameras, write_grid
 from twin.cli import main
 from twin.planning import site as site_module
+from twin.planning import site_stations
 from twin.run.runner import run_scenario
 from twin.scenario import load_scenario
 from twin.scenario.cross_checks import scenario_station_visibility
@@ -36,7 +37,8 @@ def test_a_half_hidden_view_is_planned_from_the_best_station_and_calibrates(
 ):
     # The wall hides half of cam3's view from every station; with the need above that
     # half, the plan takes the best station, says so, and lowers the scenario's fraction.
-    monkeypatch.setattr(site_module, "STATION_NEED", 0.6)
+    for module in (site_module, site_stations):
+        monkeypatch.setattr(module, "STATION_NEED", 0.6)
     code, out = plan(tmp_path)
     text = capsys.readouterr().out
     assert code == 0, text
@@ -58,8 +60,9 @@ def test_a_half_hidden_view_is_planned_from_the_best_station_and_calibrates(
 def test_a_camera_no_station_sees_enough_of_is_left_out_by_name(tmp_path, monkeypatch, capsys):
     # The least a station may see set above what any sees of cam3 (half): cam3 is named
     # with the best fraction and where, and cam1 is planned (exit 1, the scenario written).
-    monkeypatch.setattr(site_module, "STATION_NEED", 0.7)
-    monkeypatch.setattr(site_module, "STATION_FLOOR", 0.6)
+    for module in (site_module, site_stations):
+        monkeypatch.setattr(module, "STATION_NEED", 0.7)
+        monkeypatch.setattr(module, "STATION_FLOOR", 0.6)
     code, out = plan(tmp_path)
     text = capsys.readouterr().out
     assert code == 1, text
