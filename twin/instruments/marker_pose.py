@@ -102,11 +102,6 @@ def check_cube_covariance_batch(
     return c
 
 
-def check_cube_covariance(covariance: ArrayLike | None) -> NDArray[np.float64]:
-    """(3, 3, 3) per-cube or (9, 9) joint covariance, m^2 -> (9, 9); None -> zeros."""
-    return check_cube_covariance_batch(covariance, ())
-
-
 def _symmetrise(cov: NDArray[np.float64]) -> NDArray[np.float64]:
     return 0.5 * (cov + np.swapaxes(cov, -1, -2))
 
@@ -395,18 +390,3 @@ def cube_centroid_batch(
     m = check_cubes_batch(cubes_measured, "cubes_measured")
     sigma = check_cube_covariance_batch(covariance, m.shape[:-2])
     return m.mean(axis=-2), _CENTROID @ sigma @ _CENTROID.T
-
-
-def cube_centroid(
-    cubes_measured: ArrayLike, covariance: ArrayLike | None = None
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The assembly's reference point (mean of the three measured cubes) and its covariance.
-
-    Args:
-        cubes_measured: (3, 3) measured cubes, m.
-        covariance: (3, 3, 3) or (9, 9) cube covariance, m^2; None gives zeros.
-
-    Returns:
-        ``(point, covariance)``: (3,) m and (3, 3) m^2.
-    """
-    return cube_centroid_batch(check_cubes(cubes_measured, "cubes_measured"), covariance)

@@ -70,16 +70,6 @@ def closed_form_pose_batch(
     return yaw, children_world[:, 0] - (rot_z(yaw) @ children_level[:, 0, :, None])[..., 0]
 
 
-def closed_form_pose(
-    children_world: NDArray[np.float64], children_level: NDArray[np.float64]
-) -> tuple[float, NDArray[np.float64]]:
-    """Yaw (rad, in [-pi, pi)) and (3,) translation (m) from (2, 3) world and levelled
-    positions of two children, without input checks: :func:`closed_form_pose_batch` of
-    one trial."""
-    yaw, t = closed_form_pose_batch(children_world[None], children_level[None])
-    return float(yaw[0]), t[0]
-
-
 def closed_form_jacobians_batch(
     children_world: NDArray[np.float64],
     children_level: NDArray[np.float64],
@@ -106,18 +96,6 @@ def closed_form_jacobians_batch(
     g_level[:, 1:, :3] = -rot_z(yaw)
     g_level[:, 1:] -= lever[:, :, None] * dyaw_dm[:, None, :]
     return g_world, g_level
-
-
-def closed_form_jacobians(
-    children_world: NDArray[np.float64],
-    children_level: NDArray[np.float64],
-    yaw: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(4, 6) ``(g_world, g_level)`` of one trial: :func:`closed_form_jacobians_batch`."""
-    g_world, g_level = closed_form_jacobians_batch(
-        children_world[None], children_level[None], np.array([yaw], dtype=float)
-    )
-    return g_world[0], g_level[0]
 
 
 def closed_form_redundancy_batch(

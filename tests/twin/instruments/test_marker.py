@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from twin.instruments.consistency import chi2_threshold
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import (
-    cube_centroid,
+    cube_centroid_batch,
     fit_marker_pose,
     led_positions,
     marker_consistency_chi2,
@@ -143,7 +143,7 @@ def test_survey_layout_places_each_stop_on_its_childs_columns():
 def test_centroid_and_its_covariance():
     cubes = MARKER.cubes_body + np.array([10.0, 0.0, 0.0])
     cov = cartesian_covariance(cartesian2polar(cubes), TotalStationSpec())
-    point, point_cov = cube_centroid(cubes, cov)
+    point, point_cov = cube_centroid_batch(cubes, cov)
     np.testing.assert_allclose(point, cubes.mean(axis=0))
     np.testing.assert_allclose(point_cov, cov.sum(axis=0) / 9, rtol=1e-12, atol=1e-18)
 

@@ -7,7 +7,6 @@ from scipy.spatial.transform import Rotation
 
 from twin.instruments.marker import MarkerAssembly
 from twin.instruments.marker_pose import (
-    cube_centroid,
     cube_centroid_batch,
     fit_marker_pose,
     fit_marker_pose_batch,
@@ -63,7 +62,7 @@ def test_each_trial_equals_the_scalar_fit():
         one_leds, one_cov = led_positions(pose, MARKER)
         np.testing.assert_array_equal(leds[i], one_leds)
         np.testing.assert_array_equal(leds_cov[i], one_cov)
-        one_point, one_point_cov = cube_centroid(cubes[i], cov[i])
+        one_point, one_point_cov = cube_centroid_batch(cubes[i], cov[i])
         np.testing.assert_array_equal(point[i], one_point)
         np.testing.assert_array_equal(point_cov[i], one_point_cov)
 

@@ -7,8 +7,8 @@ from hypothesis import strategies as st
 
 from tests.twin.localization.helpers import iso_cov, measure_from
 from twin.localization.closed_form import (
-    closed_form_jacobians,
-    closed_form_pose,
+    closed_form_jacobians_batch,
+    closed_form_pose_batch,
     solve_closed_form,
 )
 from twin.localization.planar import level2world
@@ -46,13 +46,13 @@ def test_jacobians_match_finite_differences():
     rng = np.random.default_rng(4)
     world = rng.normal(size=(2, 3)) * 8
     level = measure_from(0.8, np.array([1.0, -3.0, 0.2]), world) + rng.normal(size=(2, 3)) * 0.01
-    yaw, _ = closed_form_pose(world, level)
-    g_world, g_level = closed_form_jacobians(world, level, yaw)
+    yaw, _ = closed_form_pose_batch(world[None], level[None])
+    g_world, g_level = (g[0] for g in closed_form_jacobians_batch(world[None], level[None], yaw))
     h = 1e-6
 
     def pose(w, m):
-        y, t = closed_form_pose(w, m)
-        return np.concatenate([[y], t])
+        y, t = closed_form_pose_batch(w[None], m[None])
+        return np.concatenate([y, t[0]])
 
     for k in range(6):
         e = np.zeros(6)
@@ -72,12 +72,10 @@ def test_covariance_matches_monte_carlo():
     cov_w = np.diag([1, 2, 3, 4, 1, 2]) * 1e-6
     cov_m = iso_cov(2, 2e-3)
     n = 4000
-    poses = np.empty((n, 4))
-    for i in range(n):
-        w = world + rng.multivariate_normal(np.zeros(6), cov_w).reshape(2, 3)
-        m = level + rng.normal(size=(2, 3)) * 2e-3
-        y, tt = closed_form_pose(w, m)
-        poses[i] = np.concatenate([[y], tt])
+    w = world + rng.multivariate_normal(np.zeros(6), cov_w, size=n).reshape(n, 2, 3)
+    m = level + rng.normal(size=(n, 2, 3)) * 2e-3
+    y, tt = closed_form_pose_batch(w, m)
+    poses = np.column_stack([y, tt])
     predicted = solve_closed_form(world, level, cov_w, cov_m).pose.covariance
     sample = np.cov(poses.T)
     np.testing.assert_allclose(np.sqrt(np.diag(sample)), np.sqrt(np.diag(predicted)), rtol=0.05)
