@@ -14,7 +14,7 @@ import tomli_w
 from twin.outputs import write_text_atomic
 from twin.planning.floor_map import MapError
 from twin.planning.maps import load_map
-from twin.planning.repair import ATTEMPTS, SECONDS, Attempt, Fix, TrialRun, repair_plan, trial_run
+from twin.planning.repair import ATTEMPTS, SECONDS, Attempt, Fix, TrialRun, repair_plan
 from twin.planning.site import SitePlan, plan_site, read_cameras
 from twin.scenario import Scenario
 from twin.scenario.errors import ScenarioError
@@ -143,17 +143,6 @@ def write_site(
     route = np.asarray(scenario.route.waypoints)
     length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
     return WrittenSite(out, figure, scenario, plan, predicted, length, missed, attempts)
-
-
-def predicted_errors(scenario: Scenario) -> tuple[dict[str, float], dict[str, str]]:
-    """Each camera's predicted world-frame position error, RMS mm, from one noise-free
-    geometric run of ``scenario`` (the covariance the campaign propagates with the
-    scenario's noise, :mod:`twin.montecarlo.prediction`; a camera calibrated twice keeps
-    its better visit), and why that run calibrated none of a camera's visits (``reason:
-    message`` of its first dropped visit) for each camera it did not calibrate
-    (:func:`twin.planning.repair.trial_run`)."""
-    run = trial_run(scenario)
-    return run.predicted_mm, run.missed
 
 
 def _where_missed(run: TrialRun, plan: SitePlan) -> dict[str, str]:

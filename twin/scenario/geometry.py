@@ -165,14 +165,6 @@ def inside_obstacles(
     return inside
 
 
-def inside_obstacle(
-    obstacle: Obstacle, points_xy: ArrayLike, margin: float = 0.0
-) -> NDArray[np.bool_]:
-    """(N,) True where (N, 2) floor points (m) lie in the footprint grown by ``margin`` (m)
-    on every side, its boundary included (see :func:`inside_obstacles`)."""
-    return inside_obstacles((obstacle,), points_xy, margin)[0]
-
-
 def obstacles_near(
     obstacles: tuple[Obstacle, ...], points_xy: ArrayLike, margin: float = 0.0
 ) -> tuple[Obstacle, ...]:

@@ -294,16 +294,16 @@ def test_the_shipped_hospital_floor_calibrates_all_its_cameras(tmp_path):
 def test_a_camera_the_plans_run_does_not_calibrate_is_named_with_why(tmp_path):
     # The station cannot be reached (an unreachable goal on it): the geometric run that
     # predicts the errors calibrates nothing, and says why for the camera.
-    from twin.planning.site_file import predicted_errors
+    from twin.planning.repair import trial_run
     from twin.scenario.overrides import with_values
 
     smoke = load_scenario(Path(__file__).resolve().parents[3] / "scenarios" / "smoke.toml")
     blocked = with_values(smoke, {"faults.unreachable": [[0.5, 0.0]]})
-    predicted, missed = predicted_errors(blocked)
-    assert predicted == {}
-    assert list(missed) == ["cam1"]
-    assert missed["cam1"].startswith("station_unreachable")
-    assert predicted_errors(smoke)[1] == {}
+    run = trial_run(blocked)
+    assert run.predicted_mm == {}
+    assert list(run.missed) == ["cam1"]
+    assert run.missed["cam1"].startswith("station_unreachable")
+    assert trial_run(smoke).missed == {}
 
 
 def test_a_start_near_a_wall_keeps_the_route_off_the_corners(tmp_path):
@@ -312,16 +312,16 @@ def test_a_start_near_a_wall_keeps_the_route_off_the_corners(tmp_path):
     # formation kept its lines of sight (the campaign aborted before cam3); the route 1 m
     # clear calibrates every camera.
     from twin.planning.maps import load_map
+    from twin.planning.repair import trial_run
     from twin.planning.sample_floor import write_floor
     from twin.planning.site import plan_site, read_cameras
-    from twin.planning.site_file import predicted_errors
     from twin.scenario.loader import scenario_from_dict
 
     map_yaml, cameras = write_floor(tmp_path / "floor", 3)
     plan = plan_site(load_map(map_yaml), read_cameras(cameras))
-    predicted, missed = predicted_errors(scenario_from_dict(plan.scenario))
-    assert missed == {}
-    assert sorted(predicted) == ["cam1", "cam2", "cam3"]
+    run = trial_run(scenario_from_dict(plan.scenario))
+    assert run.missed == {}
+    assert sorted(run.predicted_mm) == ["cam1", "cam2", "cam3"]
 
 
 def test_the_data_stops_from_a_station_are_planned_once(tmp_path, monkeypatch):

@@ -18,7 +18,6 @@ from hypothesis import strategies as st
 from twin.scenario import geometry, load_scenario
 from twin.scenario.geometry import (
     BROADCAST_PAIRS,
-    inside_obstacle,
     inside_obstacles,
     obstacles_near,
     polyline_points,
@@ -99,7 +98,7 @@ def test_only_obstacles_near_the_segments_can_block_them(space, segments, margin
         assert not every.any()
     for ob in space.obstacles:
         if ob not in near:
-            assert not inside_obstacle(ob, np.vstack([a, b])[:, :2], margin).any()
+            assert not inside_obstacles((ob,), np.vstack([a, b])[:, :2], margin).any()
 
 
 @settings(max_examples=30, deadline=None)
@@ -205,7 +204,7 @@ def test_inside_obstacle_is_the_box_in_its_own_frame(obstacle, margin, seed):
     q = np.abs(_box_frame(obstacle, points))
     clear = np.all(np.abs(q - half) > 1e-9, axis=1)
     inside = np.all(q <= half, axis=1)
-    found = inside_obstacle(obstacle, points, margin)
+    found = inside_obstacles((obstacle,), points, margin)[0]
     np.testing.assert_array_equal(found[clear], inside[clear])
     assert 0 < inside[clear].sum() < clear.sum()
 
@@ -233,7 +232,7 @@ def test_an_axis_aligned_footprint_holds_its_sides_to_the_bit(obstacle, margin, 
     points[2, k] = np.nextafter(edge[k], np.inf)
     q = np.abs(points - np.asarray(ob.center))
     expected = np.all(q <= half, axis=1)
-    np.testing.assert_array_equal(inside_obstacle(ob, points, margin), expected)
+    np.testing.assert_array_equal(inside_obstacles((ob,), points, margin)[0], expected)
     assert expected.sum() >= 1
 
 
@@ -242,8 +241,8 @@ def test_a_place_at_exactly_a_clearance_from_the_island_is_blocked(space):
     # which the formation's clearance of 0.35 m counts as blocked (a footprint grown in W,
     # 2.0 - (1.3 + 0.35), would round its side to just above 0.35).
     island = next(ob for ob in space.obstacles if ob.name == "island")
-    assert inside_obstacle(island, [[26.0, 0.35]], 0.35)[0]
-    assert not inside_obstacle(island, [[26.0, np.nextafter(0.35, 0.0)]], 0.35)[0]
+    assert inside_obstacles((island,), [[26.0, 0.35]], 0.35)[0]
+    assert not inside_obstacles((island,), [[26.0, np.nextafter(0.35, 0.0)]], 0.35)[0]
 
 
 @settings(max_examples=50, deadline=None)
@@ -287,7 +286,7 @@ def test_a_post_is_near_a_point_in_the_corner_of_its_clearance():
     # than the footprint's enclosing circle grown by the clearance.
     post = Obstacle(name="post", center=(0.0, 0.0), size=(0.01, 0.01, 2.0))
     corner = [[0.28, 0.28]]  # 0.40 m from the post's centre, within 0.29 m on each axis
-    assert inside_obstacle(post, corner, 0.29)[0]
+    assert inside_obstacles((post,), corner, 0.29)[0]
     assert obstacles_near((post,), corner, 0.29) == (post,)
     assert obstacles_near((post,), [[0.31, 0.0]], 0.29) == ()
 
