@@ -74,15 +74,6 @@ def normalise_polar(polar: ArrayLike) -> NDArray[np.float64]:
     return np.stack([d, hz, v], axis=-1)
 
 
-def add_polar_noise(
-    polar: ArrayLike, spec: TotalStationSpec, rng: np.random.Generator
-) -> NDArray[np.float64]:
-    """True (..., 3) polar triplets -> noisy ones, normalised; Gaussian noise of the spec."""
-    p = np.asarray(polar, dtype=float)
-    noisy = p + polar_sigmas(p, spec) * rng.standard_normal(p.shape)
-    return normalise_polar(noisy)
-
-
 def quantise_polar(polar: ArrayLike, spec: TotalStationSpec) -> NDArray[np.float64]:
     """Round (..., 3) polar triplets to the output resolution, as the instrument displays.
 
