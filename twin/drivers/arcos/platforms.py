@@ -28,7 +28,6 @@ class PlatformParams:
         diff_conv: DiffConvFactor, the turn rate per wheel speed: rad/s per mm/s of
             (right - left) / 2, i.e. 2 / (effective track, mm). Firmware that sends ROTVEL
             makes it unnecessary.
-        range_conv: RangeConvFactor, mm per sonar unit.
         vel2_divisor: Vel2Divisor, mm/s per unit of the VEL2 command.
     """
 
@@ -38,13 +37,7 @@ class PlatformParams:
     vel_conv: float
     angle_conv: float
     diff_conv: float
-    range_conv: float = 1.0
     vel2_divisor: float = 20.0
-
-    @property
-    def position_roll_over(self) -> float:
-        """Span after which XPOS and YPOS wrap, m."""
-        return 0x8000 * self.dist_conv / 1000.0
 
     def position_m(self, units: int | float) -> float:
         """Position units -> m."""
@@ -65,20 +58,9 @@ class PlatformParams:
         a = (rad + math.pi) % (2 * math.pi) - math.pi
         return round(a / self.angle_conv)
 
-    def wheel_mps(self, units: int) -> float:
-        """Wheel-velocity units -> m/s."""
-        return float(units) * self.vel_conv / 1000.0
-
     def wheel_units(self, mps: float) -> int:
         """m/s -> wheel-velocity units, rounded."""
         return round(mps * 1000.0 / self.vel_conv)
-
-    def turn_rate(self, left_units: int | float, right_units: int | float) -> float:
-        """Turn rate (rad/s, counter-clockwise positive) from the two wheel velocities
-        (wheel-velocity units), by DiffConvFactor: what a SIP without ROTVEL implies."""
-        mmps = (float(right_units) - float(left_units)) * self.vel_conv
-        return 0.5 * mmps * self.diff_conv
-
 
 ANGLE_UNIT = 2.0 * math.pi / 4096.0
 """Radians per heading unit: ARCOS reports headings in 4096ths of a turn."""
