@@ -81,21 +81,6 @@ def polar2cartesian_jacobian(polar: ArrayLike) -> NDArray[np.float64]:
     return matrices(rows, d.shape)
 
 
-def cartesian2polar_jacobian(points: ArrayLike) -> NDArray[np.float64]:
-    """Jacobian d(d, hz, v) / d(x, y, z) at (..., 3) points -> (..., 3, 3).
-
-    Undefined on the vertical through the instrument (hz is then arbitrary): raises
-    ValueError there.
-    """
-    p = _as_triplets(points, "points")
-    if np.any(np.hypot(p[..., 0], p[..., 1]) == 0.0):
-        raise ValueError(
-            "the horizontal angle of a point on the instrument's vertical axis is "
-            "undefined; its Jacobian does not exist"
-        )
-    return np.linalg.inv(polar2cartesian_jacobian(cartesian2polar(p)))
-
-
 @dataclass(frozen=True)
 class TotalStationMeasurement:
     """What the total station reports for one prism: levelled polar coordinates.
