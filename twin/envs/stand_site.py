@@ -224,7 +224,6 @@ class StandSite:
             stands.append(stand)
             self.at[name] = stand
         self.stands = stands
-        self._route = np.array([s.arc for s in stands if s.station is None])
 
     def travel(self, here: Stand, goal: str) -> tuple[list[Stand], float]:
         """The stands of a travel from ``here`` to station ``goal``'s (the route's stands

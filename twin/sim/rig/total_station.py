@@ -126,15 +126,7 @@ class SimTotalStation(TotalStation):
             timestamp=now,
             measurement_rng=None if self.shot_noise is None else self._keyed_noise,
         )
-        self.last_prism = self._prism_name(shot.prism_index)
         return shot.measurement
-
-    def _prism_name(self, index: int) -> tuple[str, int]:
-        """(child, cube) of prism ``index``, or ("control_points", i) for a control point."""
-        children = len(self.children) * N_CUBES
-        if index >= children:
-            return ("control_points", index - children)
-        return (self.children[index // N_CUBES], index % N_CUBES)
 
     def _keyed_noise(self, index: int) -> np.random.Generator:
         """The measurement noise's generator for a shot that locked prism ``index``."""
