@@ -51,14 +51,6 @@ def axis_index(axis: str) -> int:
     return AXES.index(axis)
 
 
-def mirror_matrix(axis: str | None) -> NDArray[np.float64]:
-    """(3, 3) diagonal matrix that negates ``axis`` (the identity for None). Its own inverse."""
-    m = np.eye(3)
-    if axis is not None:
-        m[axis_index(axis), axis_index(axis)] = -1.0
-    return m
-
-
 def mirror_points(points: ArrayLike, axis: str | None) -> NDArray[np.float64]:
     """Points or directions with the ``axis`` coordinate negated (a copy; None: unchanged).
 

@@ -26,7 +26,6 @@ from calib.handedness import (
     is_poor_fit,
     mirror_explains,
     mirror_hints,
-    mirror_matrix,
     mirror_points,
 )
 from calib.io import load_camera, write_points_csv
@@ -244,8 +243,8 @@ finite = st.floats(-1e6, 1e6, allow_nan=False)
 def test_mirroring_twice_is_the_identity(points, axis) -> None:
     once = mirror_points(points, axis)
     assert_allclose(mirror_points(once, axis), points, rtol=0, atol=0)
-    assert_allclose(once, points @ mirror_matrix(axis))
     i = AXES.index(axis)
+    assert_allclose(once[:, i], -points[:, i], rtol=0, atol=0)
     assert_allclose(np.delete(once, i, axis=1), np.delete(points, i, axis=1), rtol=0, atol=0)
     assert_allclose(mirror_points(points, None), points, rtol=0, atol=0)
 
