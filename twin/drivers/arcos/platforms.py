@@ -62,6 +62,7 @@ class PlatformParams:
         """m/s -> wheel-velocity units, rounded."""
         return round(mps * 1000.0 / self.vel_conv)
 
+
 ANGLE_UNIT = 2.0 * math.pi / 4096.0
 """Radians per heading unit: ARCOS reports headings in 4096ths of a turn."""
 
