@@ -84,7 +84,7 @@ def view_stops(
     inst = np.array([parent[0], parent[1], instrument_z])
     # Each test on the candidates that passed the ones before (the cheap ones first).
     sel, pix = leds_in_image(camera, led_w)
-    sel = sel[leds_seen(space, cam, led_w[sel], parent, anchor)]
+    sel = sel[~leds_hidden(space, cam, led_w[sel], parent, anchor).any(axis=1)]
     sel = sel[prisms_seen(space, instrument_range, inst, cube_w[sel], anchor)]
     if sel.size == 0:
         return []
@@ -190,18 +190,6 @@ def each_led_in_image(
         & (uv[..., 1] <= h - 1 - IMAGE_MARGIN)
     )
     return (z > 0.1) & inside, uv
-
-
-def leds_seen(
-    space: Space,
-    cam: NDArray[np.float64],
-    led_w: NDArray[np.float64],
-    parent_xy: NDArray[np.float64],
-    anchor_xy: NDArray[np.float64] | None,
-) -> NDArray[np.bool_]:
-    """(N,) whether the camera at ``cam`` ((3,) m) sees all (N, K, 3) LEDs of each
-    candidate past the map's obstacles, the parent and the anchor child ((2,) m or None)."""
-    return ~leds_hidden(space, cam, led_w, parent_xy, anchor_xy).any(axis=1)
 
 
 def leds_hidden(

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 from twin.campaign.plan.clearance import body_points
 from twin.campaign.plan.view_stops import (
     farthest_first,
+    leds_hidden,
     leds_in_image,
-    leds_seen,
     prisms_seen,
     view_stops,
 )
@@ -52,7 +52,7 @@ def test_candidate_tests_in_a_batch_are_each_alone(hall, name):
     parent, anchor = ground.mean(axis=0), 0.5 * (ground.mean(axis=0) + ground[0])
     inst = np.array([parent[0], parent[1], 0.0])
     kept, pixels = leds_in_image(camera, leds)
-    seen = leds_seen(hall.space, camera.position, leds, parent, anchor)
+    seen = ~leds_hidden(hall.space, camera.position, leds, parent, anchor).any(axis=1)
     reachable = prisms_seen(hall.space, RANGE, inst, cubes, anchor)
     for i in range(len(leds)):
         alone, alone_pixels = leds_in_image(camera, leds[i : i + 1])
@@ -60,7 +60,8 @@ def test_candidate_tests_in_a_batch_are_each_alone(hall, name):
         if alone.size:
             np.testing.assert_allclose(pixels[i], alone_pixels[0], rtol=1e-12)
         one = slice(i, i + 1)
-        assert seen[i] == leds_seen(hall.space, camera.position, leds[one], parent, anchor)[0]
+        hidden = leds_hidden(hall.space, camera.position, leds[one], parent, anchor)
+        assert seen[i] == (not hidden.any())
         assert reachable[i] == prisms_seen(hall.space, RANGE, inst, cubes[one], anchor)[0]
     # Every test both keeps and drops some of these candidates.
     assert 0 < kept.size < len(leds)
