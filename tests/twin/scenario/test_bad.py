@@ -387,3 +387,20 @@ def test_an_unknown_strategy_is_refused_naming_the_known_ones(tmp_path):
 def test_each_known_strategy_is_accepted(tmp_path, name):
     path = variant(tmp_path, name, [("[route]", f'[campaign]\nstrategy = "{name}"\n\n[route]')])
     assert load_scenario(path).campaign.strategy == name
+
+
+def test_a_route_through_an_obstacle_names_the_segment_and_the_obstacle(tmp_path):
+    path = variant(
+        tmp_path,
+        "routepillar",
+        [
+            (
+                "waypoints = [[0.0, 0.0], [4.0, 0.0]]",
+                "waypoints = [[0.0, 0.0], [4.0, 0.0], [4.0, -2.2], [7.0, -2.2]]",
+            )
+        ],
+    )
+    issue = _only(_error(path), "route.waypoints[2]")
+    assert "segment 2->3 runs through obstacle 'pillar' (or closer than" in issue.problem
+    assert issue.expected == "a route clear of the obstacles"
+    assert issue.value == [[4.0, -2.2], [7.0, -2.2]]

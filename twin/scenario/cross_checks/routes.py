@@ -51,24 +51,17 @@ def check_route(sc: Scenario) -> list[ScenarioIssue]:
         )
     pts, seg = polyline_points(sc.route.waypoints, spacing=0.05)
     margin = PARENT_CLEARANCE
-    bad_wall = ~inside_space(sc.space, pts, margin)
-    reported: set[int] = set()
-    for k in np.flatnonzero(bad_wall):
-        i = int(seg[k])
-        if i in reported:
-            continue
-        reported.add(i)
-        issues.append(
-            ScenarioIssue(
-                f"route.waypoints[{i}]",
-                f"route segment {i}->{i + 1} runs through a wall or closer than "
-                f"{margin:.2f} m to one, near ({pts[k, 0]:.2f}, {pts[k, 1]:.2f})",
-                [list(sc.route.waypoints[i]), list(sc.route.waypoints[i + 1])],
-                "a route inside the space",
-            )
-        )
+    # What each sample runs through: the walls first, then each obstacle.
+    closer = f"closer than {margin:.2f} m"
+    wall = ~inside_space(sc.space, pts, margin)
+    through = [(wall, f"a wall or {closer} to one", "a route inside the space")]
     hits = inside_obstacles(sc.space.obstacles, pts, margin)
-    for ob, hit in zip(sc.space.obstacles, hits, strict=True):
+    through += [
+        (hit, f"obstacle {ob.name!r} (or {closer})", "a route clear of the obstacles")
+        for ob, hit in zip(sc.space.obstacles, hits, strict=True)
+    ]
+    reported: set[int] = set()
+    for hit, what, expected in through:
         for k in np.flatnonzero(hit):
             i = int(seg[k])
             if i in reported:
@@ -77,10 +70,10 @@ def check_route(sc: Scenario) -> list[ScenarioIssue]:
             issues.append(
                 ScenarioIssue(
                     f"route.waypoints[{i}]",
-                    f"route segment {i}->{i + 1} runs through obstacle {ob.name!r} (or "
-                    f"closer than {margin:.2f} m), near ({pts[k, 0]:.2f}, {pts[k, 1]:.2f})",
+                    f"route segment {i}->{i + 1} runs through {what}, near "
+                    f"({pts[k, 0]:.2f}, {pts[k, 1]:.2f})",
                     [list(sc.route.waypoints[i]), list(sc.route.waypoints[i + 1])],
-                    "a route clear of the obstacles",
+                    expected,
                 )
             )
     return issues
