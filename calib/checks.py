@@ -36,26 +36,24 @@ def _check_finite(arr: NDArray[np.float64], name: str) -> None:
         )
 
 
-def check_points_3d(points: ArrayLike, name: str = "points_3d") -> NDArray[np.float64]:
-    """Return ``points`` as a float array of shape (N, 3), or raise ValueError."""
-    arr = np.asarray(points, dtype=float)
-    if arr.ndim == 1 and arr.shape[0] == 3:
+def _check_rows(values: ArrayLike, width: int, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 1 and arr.shape[0] == width:
         arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
+    if arr.ndim != 2 or arr.shape[1] != width:
+        raise ValueError(f"{name} must have shape (N, {width}), got {arr.shape}")
     _check_finite(arr, name)
     return arr
+
+
+def check_points_3d(points: ArrayLike, name: str = "points_3d") -> NDArray[np.float64]:
+    """Return ``points`` as a float array of shape (N, 3), or raise ValueError."""
+    return _check_rows(points, 3, name)
 
 
 def check_pixels(pixels: ArrayLike, name: str = "pixels") -> NDArray[np.float64]:
     """Return ``pixels`` as a float array of shape (N, 2), or raise ValueError."""
-    arr = np.asarray(pixels, dtype=float)
-    if arr.ndim == 1 and arr.shape[0] == 2:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"{name} must have shape (N, 2), got {arr.shape}")
-    _check_finite(arr, name)
-    return arr
+    return _check_rows(pixels, 2, name)
 
 
 def check_correspondences(
