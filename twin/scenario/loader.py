@@ -103,7 +103,6 @@ def read_mapping(path: Path, error: type[ScenarioError] = ScenarioError) -> Mapp
     if not isinstance(raw, Mapping):
         raise error(path, [ScenarioIssue("<top>", "not a table", None, "key = value")])
     return raw
-    return scenario_from_dict(raw, file=path)
 
 
 def scenario_from_dict(raw: Mapping[str, Any], file: str | Path = "<dict>") -> Scenario:
