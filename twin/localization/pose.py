@@ -181,11 +181,6 @@ class ParentPoseBatch:
         """(T,) predicted standard deviation of the yaw, rad."""
         return np.sqrt(np.maximum(self.covariance[:, 0, 0], 0.0))
 
-    @property
-    def position_covariance(self) -> NDArray[np.float64]:
-        """(T, 3, 3) covariance of the translation, m^2."""
-        return self.covariance[:, 1:, 1:]
-
     def level2world(self, points_level: ArrayLike) -> NDArray[np.float64]:
         """Map (T, ..., 3) points of each trial's levelled frame to the world (eq. 1), m."""
         p = np.asarray(points_level, dtype=float)
