@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from twin.scenario.geometry import inside_obstacles, inside_space
 from twin.scenario.schema import StoppingConfig
+from twin.sim.controller import ramp
 from twin.sim.rig.frames import WorldFrame
 from twin.sim.world import World
 
@@ -31,12 +32,6 @@ REST_SPEED = 1e-6
 
 def _wrap(angle: float) -> float:
     return math.atan2(math.sin(angle), math.cos(angle))
-
-
-def _approach(current: float, target: float, step: float) -> float:
-    if target > current:
-        return min(target, current + step)
-    return max(target, current - step)
 
 
 class PioneerBody:
@@ -142,8 +137,8 @@ class PioneerBody:
         if v_cmd == 0.0 and w_cmd == 0.0:
             self.stalled = False
         v0, w0 = self.v, self.w
-        self.v = _approach(v0, v_cmd, p.max_accel * dt)
-        self.w = _approach(w0, w_cmd, p.max_yaw_accel * dt)
+        self.v = ramp(v0, v_cmd, p.max_accel * dt)
+        self.w = ramp(w0, w_cmd, p.max_yaw_accel * dt)
         if not self.moving:
             self.v = self.w = 0.0
             if self._moved:

@@ -138,8 +138,8 @@ class DriveController:
                 w_t = self._turn_rate(err)
         if self.phase is DrivePhase.DONE:
             v_t, w_t = 0.0, 0.0
-        self.v = _ramp(self.v, v_t, p.max_accel * dt)
-        self.w = _ramp(self.w, w_t, p.max_yaw_accel * dt)
+        self.v = ramp(self.v, v_t, p.max_accel * dt)
+        self.w = ramp(self.w, w_t, p.max_yaw_accel * dt)
         if settled and self.v == 0.0 and self.w == 0.0:
             # Done only on the goal: a robot that stopped off it (braking overshoot, a turn
             # in place that shifted it) closes the gap again.
@@ -178,7 +178,9 @@ class DriveController:
         return math.copysign(rate, err)
 
 
-def _ramp(current: float, target: float, step: float) -> float:
+def ramp(current: float, target: float, step: float) -> float:
+    """``current`` moved towards ``target`` by at most ``step`` (a speed under a limited
+    acceleration, the units of the three)."""
     if target > current:
         return min(target, current + step)
     return max(target, current - step)

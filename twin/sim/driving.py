@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from twin.scenario.robots import OdometrySpec
-from twin.sim.controller import DriveController, DriveTolerance
+from twin.sim.controller import DriveController, DriveTolerance, ramp
 from twin.sim.odometry import WheelOdometry
 from twin.sim.robots import RobotHandle
 
@@ -211,8 +211,8 @@ class Driving:
             v0, w0 = self._command[name]
             vt, wt = self._target[name]
             # The controllers ramp by exactly these steps: allow for rounding.
-            v = _ramp(v0, vt, p.max_accel * dt * (1.0 + 1e-9))
-            w = _ramp(w0, wt, p.max_yaw_accel * dt * (1.0 + 1e-9))
+            v = ramp(v0, vt, p.max_accel * dt * (1.0 + 1e-9))
+            w = ramp(w0, wt, p.max_yaw_accel * dt * (1.0 + 1e-9))
             self._command[name] = (v, w)
             if v == 0.0 and w == 0.0 and vt == 0.0 and wt == 0.0:
                 self._hold(h)
@@ -277,9 +277,3 @@ class Driving:
                     )
         self.collisions += new
         return new
-
-
-def _ramp(current: float, target: float, step: float) -> float:
-    if target > current:
-        return min(target, current + step)
-    return max(target, current - step)
