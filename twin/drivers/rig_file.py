@@ -57,14 +57,6 @@ Seconds = Annotated[float, Field(gt=0.0, le=MAX_SECONDS)]
 Baud = Annotated[int, Field(gt=0, le=4_000_000)]
 Port = Annotated[str, Field(min_length=1, max_length=400)]
 
-TOTAL_STATION_DRIVERS = ("geocom",)
-"""Total-station drivers. Topcon's GTS series (the paper's GTS-820A) is not among them: its
-serial command set is not published. A driver for it implements
-:class:`twin.hal.TotalStation` and is added to :func:`twin.drivers.build.build_rig`."""
-
-ROBOT_MODELS = ("p3dx", "p3at")
-"""Pioneer models whose ARCOS conversion factors the driver knows."""
-
 
 class RigFileError(ScenarioError):
     """A rig file failed to parse or validate, or does not fit the scenario."""
@@ -76,7 +68,10 @@ class TotalStationDevice(Frozen):
     """The parent's total station.
 
     Attributes:
-        driver: ``geocom``.
+        driver: ``geocom``, the only total-station driver. Topcon's GTS series (the paper's
+            GTS-820A) has none: its serial command set is not published. A driver for it
+            implements :class:`twin.hal.TotalStation` and is added to
+            :func:`twin.drivers.build.build_rig`.
         port: a serial port's path, or ``socket://HOST:PORT`` (a serial-to-Ethernet bridge,
             an instrument's own socket).
         baud: the serial line's rate (the instrument's GeoCOM port setting).
