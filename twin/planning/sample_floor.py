@@ -60,14 +60,11 @@ class SampleFloor:
         free: (H, W) bool, free cells (row 0 is the map's top).
         origin: (x, y) of the grid's lower-left corner, m.
         cameras: the cameras file's entries (map frame, z above the floor).
-        corridor_length: length of each corridor, m. rows: number of corridors.
     """
 
     free: np.ndarray
     origin: tuple[float, float]
     cameras: list[dict[str, Any]]
-    corridor_length: float
-    rows: int
 
 
 def hospital_floor(cameras: int = 30, metres_per_camera: float = 22.0) -> SampleFloor:
@@ -127,7 +124,7 @@ def hospital_floor(cameras: int = 30, metres_per_camera: float = 22.0) -> Sample
                 "image_size": [320, 240],
             }
         )
-    return SampleFloor(free, (0.0, 0.0), out, length, rows)
+    return SampleFloor(free, (0.0, 0.0), out)
 
 
 OFFICE_CORRIDOR = 4.0
@@ -281,7 +278,7 @@ def office_floor(
         wall[:, 1:] |= ~free[:, :-1]
         wall[:, :-1] |= ~free[:, 1:]
         free &= ~(wall & (rng.random(free.shape) < rough))
-    return SampleFloor(free, (0.0, 0.0), out, width - 2 * m, len(centres[1]))
+    return SampleFloor(free, (0.0, 0.0), out)
 
 
 def _corridor_cameras(
