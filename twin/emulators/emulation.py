@@ -136,13 +136,6 @@ class Emulation(Closing):
     renderer: Closing | None = None
     _closed: bool = field(default=False, repr=False)
 
-    def addresses(self) -> dict[str, str]:
-        """What a driver opens for each device: a pty's path, a socket or an HTTP URL."""
-        out = {"total_station": self.total_station.address}
-        out.update({name: e.address for name, e in self.robots.items()})
-        out.update({name: s.url for name, s in self.cameras.items()})
-        return out
-
     def rig_file(self, truth: str = "truth.json") -> dict[str, Any]:
         """The rig file that points at the emulators, as a mapping."""
         children = {c.name for c in self.scenario.robots.children}
