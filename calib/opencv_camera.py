@@ -127,12 +127,10 @@ class OpenCVConversion:
     Attributes:
         camera: the OpenCV camera.
         max_error_px: largest disagreement between the two projections over the image, px.
-        rms_error_px: RMS disagreement over the image grid, px.
     """
 
     camera: OpenCVCamera
     max_error_px: float
-    rms_error_px: float
 
 
 def image_grid(image_size: tuple[int, int], step: float = 4.0) -> NDArray[np.float64]:
@@ -201,4 +199,4 @@ def tsai2opencv(camera: TsaiCamera, *, tolerance_px: float = 0.01) -> OpenCVConv
     # Measure with OpenCV itself: rays through the grid, projected back by cv2.projectPoints.
     origins, dirs = camera.unproject(grid)
     err = np.linalg.norm(cv_cam.project(origins + 5.0 * dirs) - grid, axis=1)
-    return OpenCVConversion(cv_cam, float(err.max()), float(np.sqrt(np.mean(err**2))))
+    return OpenCVConversion(cv_cam, float(err.max()))
