@@ -12,11 +12,12 @@ Closing a wrapper closes the device it wraps.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import Generic, TypeVar
 
 from numpy.typing import ArrayLike
 
 from calib.detection.sequence import SwitchingSequence
+from twin.closing import Closing
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds, MobileBase, TotalStation
 from twin.hal.readings import (
     DriveResult,
@@ -29,12 +30,21 @@ from twin.hal.readings import (
 from twin.hal.rig import Rig
 from twin.instruments.total_station import InclinometerSpec, TotalStationSpec
 
+_Inner = TypeVar("_Inner", bound=Closing)
 
-class ClockWrapper(Clock):
-    """A clock that passes every call to ``inner``."""
 
-    def __init__(self, inner: Clock) -> None:
+class _Wrapper(Generic[_Inner]):
+    """Holds the wrapped device, ``inner``; closing the wrapper closes it."""
+
+    def __init__(self, inner: _Inner) -> None:
         self.inner = inner
+
+    def close(self) -> None:
+        self.inner.close()
+
+
+class ClockWrapper(_Wrapper[Clock], Clock):
+    """A clock that passes every call to ``inner``."""
 
     def now(self) -> float:
         return self.inner.now()
@@ -42,15 +52,9 @@ class ClockWrapper(Clock):
     def sleep(self, seconds: float) -> None:
         self.inner.sleep(seconds)
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class TotalStationWrapper(TotalStation):
+class TotalStationWrapper(_Wrapper[TotalStation], TotalStation):
     """A total station that passes every call to ``inner``."""
-
-    def __init__(self, inner: TotalStation) -> None:
-        self.inner = inner
 
     @property
     def spec(self) -> TotalStationSpec:
@@ -69,15 +73,9 @@ class TotalStationWrapper(TotalStation):
     def read_inclination(self) -> TiltReading:
         return self.inner.read_inclination()
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class MobileBaseWrapper(MobileBase):
+class MobileBaseWrapper(_Wrapper[MobileBase], MobileBase):
     """A mobile base that passes every call to ``inner``."""
-
-    def __init__(self, inner: MobileBase) -> None:
-        self.inner = inner
 
     @property
     def name(self) -> str:
@@ -92,15 +90,9 @@ class MobileBaseWrapper(MobileBase):
     def set_pose(self, x: float, y: float, yaw: float) -> None:
         self.inner.set_pose(x, y, yaw)
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class MarkerLedsWrapper(MarkerLeds):
+class MarkerLedsWrapper(_Wrapper[MarkerLeds], MarkerLeds):
     """A child's LEDs that pass every call to ``inner``."""
-
-    def __init__(self, inner: MarkerLeds) -> None:
-        self.inner = inner
 
     @property
     def child(self) -> str:
@@ -113,15 +105,9 @@ class MarkerLedsWrapper(MarkerLeds):
     def switch(self, on: Sequence[bool]) -> LedSwitch:
         return self.inner.switch(on)
 
-    def close(self) -> None:
-        self.inner.close()
 
-
-class LedSensorWrapper(LedSensor):
+class LedSensorWrapper(_Wrapper[LedSensor], LedSensor):
     """An LED sensor that passes every call to ``inner``."""
-
-    def __init__(self, inner: LedSensor) -> None:
-        self.inner = inner
 
     @property
     def camera(self) -> str:
@@ -133,9 +119,6 @@ class LedSensorWrapper(LedSensor):
 
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         return self.inner.observe(child, sequence)
-
-    def close(self) -> None:
-        self.inner.close()
 
 
 D = TypeVar("D")
