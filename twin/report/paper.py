@@ -41,16 +41,6 @@ ROUTE_LENGTH_M = 85.0
 REFERENCE_POINTS = 70
 """Points in each reference data set (cameras 1 and 2, measured from the origin)."""
 
-VISIT_ORDER: tuple[tuple[str, int], ...] = (
-    ("cam1", 1),
-    ("cam2", 1),
-    ("cam3", 1),
-    ("cam2", 2),
-    ("cam1", 2),
-)
-"""The paper's visits in the order they were made: cameras 1, 2, 3, 2, 1."""
-
-
 @dataclass(frozen=True)
 class PaperCalibration:
     """One column of Table II, in the paper's units.
