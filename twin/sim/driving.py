@@ -137,16 +137,6 @@ class Driving:
             float(np.clip(w, -p.max_yaw_rate, p.max_yaw_rate)),
         )
 
-    def set_wheel_speeds(self, robot: str, left: float, right: float) -> None:
-        """Command the wheel speeds of each side, rad/s: the same as the (v, w) they
-        make through the robot's ``command_track``, with the same limits (see
-        :meth:`set_body_velocity`)."""
-        p = self.robots[robot].platform
-        r = p.wheel_radius
-        self.set_body_velocity(
-            robot, 0.5 * r * (left + right), r * (right - left) / p.command_track
-        )
-
     def body_velocity_command(self, robot: str) -> tuple[float, float]:
         """The (v, w) applied to the robot's wheels in the last control period."""
         return self._command[robot]

@@ -184,15 +184,11 @@ def test_pushing_against_a_wall_is_one_collision_and_a_new_contact_another():
 
 
 @pytest.mark.parametrize("robot", ["parent", "child1"])
-@pytest.mark.parametrize("via", ["body", "wheels"])
-def test_direct_commands_keep_the_speed_and_acceleration_limits(robot, via):
+def test_direct_commands_keep_the_speed_and_acceleration_limits(robot):
     world = build_world(scenario("smoke"))
     h = world.robots[robot]
     p = h.platform
-    if via == "body":
-        world.driving.set_body_velocity(robot, 10.0, 0.0)
-    else:
-        world.driving.set_wheel_speeds(robot, 20.0, 20.0)
+    world.driving.set_body_velocity(robot, 10.0, 0.0)
     commands, speeds = [], []
     for _ in range(150):
         world.step()
