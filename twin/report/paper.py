@@ -41,6 +41,7 @@ ROUTE_LENGTH_M = 85.0
 REFERENCE_POINTS = 70
 """Points in each reference data set (cameras 1 and 2, measured from the origin)."""
 
+
 @dataclass(frozen=True)
 class PaperCalibration:
     """One column of Table II, in the paper's units.
