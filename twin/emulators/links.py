@@ -109,11 +109,6 @@ class TcpLink(Link):
     def address(self) -> str:
         return f"socket://127.0.0.1:{self.port}"
 
-    @property
-    def connected(self) -> bool:
-        """Whether a driver is connected now."""
-        return self._client is not None
-
     def _accept(self, timeout: float) -> socket.socket | None:
         ready, _, _ = select.select([self._server], [], [], max(timeout, 0.0))
         if not ready:
