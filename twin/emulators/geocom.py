@@ -5,8 +5,8 @@ before a request, as clients send to clear the line, is ignored); replies are
 ``%R1P,<RC_COM>,<TrId>[,<CRC>]:<RC>[,<values>]`` CR LF, as in Leica's "TPS1200+/TS30/TM30
 GeoCOM Reference Manual" (version 1.50); :mod:`twin.emulators.geocom_requests` reads and
 writes them. The emulator answers with a wrapped :class:`twin.hal.TotalStation`, called
-only while holding the shared ``lock``: the RPCs answered (``RPC_NAMES``), and what each
-does, are those of :mod:`twin.emulators.geocom_instrument`.
+only while holding the shared ``lock``: the RPCs answered, and what each does, are those
+of :mod:`twin.emulators.geocom_instrument`.
 
 Any other RPC gets ``COM_PROC_UNAVAIL`` (3081) in ``RC_COM``; a line that is not a
 request, ``COM_CANT_DECODE_REQ`` (3080); a wrong checksum ``COM_SRVR_RX_CHECKSUM_ERROR``

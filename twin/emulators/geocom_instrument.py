@@ -2,7 +2,7 @@
 to a wrapped :class:`twin.hal.TotalStation`, called only while holding the shared ``lock``.
 
 Angles are radians: ``Hz`` clockwise, ``V`` the zenith angle
-(:mod:`twin.drivers.geocom_codes` converts them). The RPCs answered (``RPC_NAMES``):
+(:mod:`twin.drivers.geocom_codes` converts them). The RPCs answered:
 
 - ``COM_NullProc`` 0, ``COM_SetDoublePrecision`` 107, ``COM_GetDoublePrecision`` 108,
   ``COM_GetSWVersion`` 110, ``CSV_GetInstrumentNo`` 5003, ``CSV_GetInstrumentName`` 5004,
@@ -73,27 +73,6 @@ POINTING_RANGE = 10.0
 
 TMC_STOP = 0
 TMC_CLEAR = 3
-
-RPC_NAMES: dict[int, str] = {
-    0: "COM_NullProc",
-    107: "COM_SetDoublePrecision",
-    108: "COM_GetDoublePrecision",
-    110: "COM_GetSWVersion",
-    2003: "TMC_GetAngle1",
-    2007: "TMC_GetInclineSwitch",
-    2008: "TMC_DoMeasure",
-    2026: "TMC_GetFace",
-    2107: "TMC_GetAngle5",
-    2108: "TMC_GetSimpleMea",
-    5003: "CSV_GetInstrumentNo",
-    5004: "CSV_GetInstrumentName",
-    5034: "CSV_GetSWVersion",
-    9019: "AUT_GetATRStatus",
-    9027: "AUT_MakePositioning",
-    9037: "AUT_FineAdjust",
-    17017: "BAP_MeasDistanceAngle",
-}
-"""The RPCs the emulator answers, by number."""
 
 FIRMWARE = (1, 0, 0)
 """What ``CSV_GetSWVersion`` reports (release, version, subversion)."""
