@@ -27,7 +27,7 @@ noise-free decision.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import mujoco
@@ -43,7 +43,6 @@ from twin.campaign.records import (
     DATASET,
     PARENT_FIX,
     POINT,
-    SKIPPED,
     CalibrationRecord,
 )
 from twin.campaign.strategies import strategy_for
@@ -158,8 +157,6 @@ class BatchPlan:
         steps: what the campaign did, in order.
         cameras: each camera's true model in W.
         led_radii: each child's (N_led,) LED radii, m (an LED is seen whole or not at all).
-        planned_visits: (camera, visit) of every visit the strategy made, in order,
-            calibrated or not.
     """
 
     scenario: Scenario
@@ -170,7 +167,6 @@ class BatchPlan:
     steps: tuple[Step, ...]
     cameras: Mapping[str, TsaiCamera]
     led_radii: Mapping[str, NDArray[np.float64]]
-    planned_visits: tuple[tuple[str, int], ...] = field(default=())
 
     @property
     def calibrations(self) -> tuple[Calibrate, ...]:
@@ -326,7 +322,6 @@ class PlanSession:
             steps=tuple(self._parser.steps),
             cameras=self._cameras,
             led_radii=self._radii,
-            planned_visits=tuple(self._parser.visits),
         )
 
     def truth_at(self, robot: str, pose: NDArray[np.float64]) -> RobotTruth:
@@ -384,11 +379,10 @@ def record_plan(scenario: Scenario, strategy: str | None = None) -> BatchPlan:
 
 
 class _StepParser:
-    """Turns a run's records into the plan's steps and visits, as they come."""
+    """Turns a run's records into the plan's steps, as they come."""
 
     def __init__(self) -> None:
         self.steps: list[Step] = []
-        self.visits: list[tuple[str, int]] = []
         self._truth: dict[str, RobotTruth] = {}
         self._found: dict[tuple[str, str], tuple[int, ...]] = {}  # (camera, child) -> LEDs
 
@@ -398,7 +392,7 @@ class _StepParser:
             self._one(topic, rec)
 
     def _one(self, topic: str, rec: Any) -> None:
-        steps, visits, truth = self.steps, self.visits, self._truth
+        steps, truth = self.steps, self._truth
         if topic == TRUTH_AFTER_DRIVE:
             name, where = rec
             truth[name] = where
@@ -426,6 +420,3 @@ class _StepParser:
             model = camera_from_dict(rec.camera_model, f"calibration of {rec.camera}")
             assert isinstance(model, TsaiCamera)
             steps.append(Calibrate(rec.camera, rec.visit, rec.points, model))
-            visits.append((rec.camera, rec.visit))
-        elif topic == SKIPPED:
-            visits.append((rec.camera, rec.visit))
