@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 
-.PHONY: run test lint format bench docs clean gl-libs
+.PHONY: run test test-rl lint format bench docs clean gl-libs
 
 # Headless rendering needs Mesa's EGL (or OSMesa). When neither library is installed they
 # are installed with apt-get where that is possible (as root), else the command is shown.
@@ -39,6 +39,22 @@ test: $(VENV)/.stamp-dev gl-libs
 	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -n 2 --dist worksteal -q
 
+# The reinforcement-learning integration tests (tests/rl: MaskablePPO through the environment
+# and through twin.envs.sb3) in a venv of their own, .venv-rl, with the rl extra (sb3-contrib,
+# Stable-Baselines3, torch: PyPI serves torch's CUDA build, several GB). make test leaves
+# tests/rl out (tests/conftest.py) and its venv has no torch.
+VENV_RL ?= .venv-rl
+PY_RL   := $(VENV_RL)/bin/python
+
+$(VENV_RL)/.stamp-rl: pyproject.toml
+	$(PYTHON) -m venv $(VENV_RL)
+	$(PY_RL) -m pip install --quiet --upgrade pip
+	$(PY_RL) -m pip install --quiet -e ".[dev,rl]"
+	touch $@
+
+test-rl: $(VENV_RL)/.stamp-rl
+	$(PY_RL) -m pytest -q tests/rl
+
 lint: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
@@ -56,4 +72,4 @@ bench: $(VENV)/.stamp-dev
 	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(VENV_RL) out .pytest_cache .ruff_cache
