@@ -14,11 +14,16 @@ only allowed moves.
   from once is not used again: its data would be the same); on a leg, the in-line
   formation and the longest step whose formation has room;
 - ``random``: a move drawn uniformly from those allowed.
+
+A saved MaskablePPO model (a ``.zip`` of sb3-contrib) is a policy too
+(:func:`policy_for`): its deterministic action under the mask, from the observation alone.
+Loading one needs sb3-contrib (the ``rl`` extra), imported only then.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -165,3 +170,68 @@ def policy_named(name: str) -> Policy:
         return POLICIES[name]
     except KeyError:
         raise ValueError(f"unknown policy {name!r}; policies: {', '.join(POLICIES)}") from None
+
+
+MODEL_SUFFIX = ".zip"
+"""A policy given by a path with this suffix is a saved MaskablePPO model."""
+
+
+def is_model(spec: str) -> bool:
+    """Whether ``spec`` names a saved model (a path ending in :data:`MODEL_SUFFIX`) rather
+    than a policy of :data:`POLICIES`."""
+    return spec not in POLICIES and spec.lower().endswith(MODEL_SUFFIX)
+
+
+def policy_for(spec: str) -> Policy:
+    """The policy ``spec`` names: one of :data:`POLICIES`, or a saved MaskablePPO model
+    (a path ending in ``.zip``, loaded now, on the CPU).
+
+    Raises:
+        ValueError: an unknown name, a model file that is missing or is not a saved
+            MaskablePPO, or sb3-contrib is not installed (the message names ``spec``).
+    """
+    if not is_model(spec):
+        return policy_named(spec)
+    path = Path(spec)
+    if not path.is_file():
+        raise ValueError(f"policy {spec}: no such file; expected a saved MaskablePPO model (.zip)")
+    try:
+        from sb3_contrib import MaskablePPO  # imports torch
+    except ImportError:
+        raise ValueError(
+            f"policy {spec}: loading a saved model needs sb3-contrib, which is not installed "
+            "(pip install 'camnet-twin[rl]', or make test-rl's .venv-rl)"
+        ) from None
+    try:
+        model = MaskablePPO.load(path, device="cpu")
+    except Exception as exc:  # a zip of something else: whatever the loader raises
+        raise ValueError(f"policy {spec}: not a saved MaskablePPO model ({exc})") from None
+    return model_policy(model, spec)
+
+
+def model_policy(model: Any, name: str = "model") -> Policy:
+    """A policy of a trained MaskablePPO ``model``: at each step its deterministic action
+    under the episode's mask.
+
+    Raises (when an episode starts):
+        ValueError: the model's observation or action space is not the environment's
+            (it was trained with other ``max_cameras``, ``max_stations`` or moves).
+    """
+
+    def make(env: CpsCampaignEnv, seed: int) -> Actor:
+        if model.observation_space != env.observation_space or (
+            model.action_space != env.action_space
+        ):
+            raise ValueError(
+                f"policy {name}: the model's observation or action space is not the "
+                f"environment's ({model.action_space} against {env.action_space}): it was "
+                "trained with other max_cameras, max_stations or moves"
+            )
+
+        def act(obs: dict[str, NDArray[np.float32]], info: dict[str, Any]) -> int:
+            action, _ = model.predict(obs, action_masks=info["action_mask"], deterministic=True)
+            return int(action)
+
+        return act
+
+    return make

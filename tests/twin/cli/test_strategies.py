@@ -104,3 +104,100 @@ def test_the_last_seed_of_the_range_is_played(tmp_path, monkeypatch):
     with pytest.raises(Played) as played:
         main([*argv, "--out", str(tmp_path / "s")])
     assert played.value.args == (2**63 - 1,)
+
+
+def test_a_policy_on_a_test_set_against_a_baseline_writes_its_rows(tmp_path, capsys):
+    """The smoke test set's first episode, paper against greedy: every row written, the
+    test set's seed, and the paired difference equal to the rows' difference."""
+    from twin.envs.heldout import test_set
+
+    out = tmp_path / "t"
+    argv = ["strategies", "--test-set", "smoke", "--episodes", "1", "--policy", "paper"]
+    assert main([*argv, "--baseline", "greedy", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "paired by seed: policy - greedy" in said
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    seed = test_set("smoke").seeds.start
+    assert [(r["policy"], int(r["seed"])) for r in rows] == [("greedy", seed), ("paper", seed)]
+    for r in rows:
+        assert float(r["reward"]) > 0  # the camera calibrated: the predicted error fell
+        assert 0 < float(r["true_error_mm"]) < 100
+        assert float(r["distance_m"]) >= 0
+        assert float(r["time_s"]) > 0
+        assert float(r["true_error_mm"]) == pytest.approx(float(r["mean_camera_error_mm"]))
+    differences = {d["metric"]: d for d in csv.DictReader((out / "differences.csv").open())}
+    assert set(differences) == {
+        "true_error_mm",
+        "mean_camera_error_mm",
+        "reward",
+        "distance_m",
+        "time_s",
+    }
+    for metric, d in differences.items():
+        assert (d["policy"], d["baseline"], d["pairs"]) == ("paper", "greedy", "1")
+        expected = float(rows[1][metric]) - float(rows[0][metric])
+        assert float(d["mean"]) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--test-set", "nope"], "invalid choice: 'nope'"),
+        (["--test-set", "smoke", "--policy", "clever"], "invalid choice: 'clever'"),
+        (["--test-set", "smoke", "--baseline", "clever"], "invalid choice: 'clever'"),
+    ],
+)
+def test_an_unknown_test_set_or_policy_is_named(argv, message, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["strategies", *argv, "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--test-set", "smoke", str(SMOKE)], f"scenario {SMOKE} with --test-set smoke"),
+        (["--test-set", "smoke", "--seed", "3"], "--seed with --test-set smoke"),
+        (["--test-set", "smoke", "--episodes", "4"], "--episodes 4 with --test-set smoke"),
+        ([], "expected a scenario file, 'random', or --test-set NAME"),
+    ],
+)
+def test_a_test_set_with_contradicting_options_is_refused(argv, message, tmp_path, capsys):
+    assert main(["strategies", *argv, "--out", str(tmp_path / "o")]) == 2
+    assert message in " ".join(capsys.readouterr().out.split())
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_missing_model_is_named(tmp_path, capsys):
+    model = tmp_path / "models" / "ppo.zip"
+    argv = ["strategies", "--test-set", "smoke", "--policy", str(model), "greedy"]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"policy {model}: no such file" in said
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_model_without_sb3_contrib_is_named(tmp_path, capsys, monkeypatch):
+    import sys
+
+    model = tmp_path / "ppo.zip"
+    model.write_bytes(b"PK\x05\x06" + bytes(18))  # an empty zip
+    monkeypatch.setitem(sys.modules, "sb3_contrib", None)  # as if not installed
+    argv = ["strategies", "--test-set", "smoke", "--policy", str(model)]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"policy {model}: loading a saved model needs sb3-contrib" in said
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_default_test_set_is_held_out_from_training():
+    from twin.envs.heldout import DEFAULT_TEST_SET, TEST_SETS, TRAINING_SEEDS
+
+    assert TEST_SETS[DEFAULT_TEST_SET].episodes >= 100
+    assert TEST_SETS[DEFAULT_TEST_SET].scenario == "random"
+    ranges = [TRAINING_SEEDS, *(t.seeds for t in TEST_SETS.values())]
+    for i, a in enumerate(ranges):
+        for b in ranges[i + 1 :]:
+            assert a.stop <= b.start or b.stop <= a.start  # no seed in two of them
