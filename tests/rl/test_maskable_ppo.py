@@ -138,3 +138,37 @@ def test_maskable_ppo_learns_through_the_projects_vec_env():
     assert masks.shape == (n, venv.action_space.n)
     assert masks.any(axis=1).all()
     monitored.close()
+
+
+def test_twin_strategies_evaluates_a_saved_model_on_a_test_set(tmp_path, capsys):
+    """A model saved after a few updates plays the smoke test set through ``twin strategies
+    --policy model.zip --baseline greedy`` (loaded once, its moves masked); one trained with
+    room for fewer stations is refused, naming the model."""
+    import csv
+
+    from twin.cli import main
+
+    env = gymnasium.make("camnet/CpsCampaign-v0", scenario=SCENARIO, planner="stands")
+    model = MaskablePPO("MultiInputPolicy", env, **PPO)
+    model.learn(total_timesteps=256)
+    path = tmp_path / "model.zip"
+    model.save(path)
+    out = tmp_path / "eval"
+    argv = ["strategies", "--test-set", "smoke", "--policy", str(path), "--baseline", "greedy"]
+    assert main([*argv, "--planner", "stands", "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    assert [r["policy"] for r in rows] == ["greedy"] * 3 + [str(path)] * 3
+    assert all(int(r["steps"]) >= 1 for r in rows)
+    differences = list(csv.DictReader((out / "differences.csv").open()))
+    assert {d["policy"] for d in differences} == {str(path)}
+    assert all(d["pairs"] == "3" for d in differences if d["metric"] != "mean_camera_error_mm")
+
+    small = gymnasium.make("camnet/CpsCampaign-v0", scenario=SCENARIO, max_stations=4)
+    other = tmp_path / "other.zip"
+    MaskablePPO("MultiInputPolicy", small, **PPO).save(other)
+    capsys.readouterr()
+    argv = ["strategies", "--test-set", "smoke", "--policy", str(other)]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    said = " ".join(capsys.readouterr().out.split())
+    assert f"policy {other}: the model's observation or action space is not the" in said
+    assert not (tmp_path / "o").exists()
