@@ -61,7 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "DIR/summary.json and DIR/tradeoff.png (error against travel, a point per "
             "episode). With --test-set the episodes are a held-out test set's (sites and "
             "seeds training never uses, twin.envs.heldout); with --baseline, each policy's "
-            "paired differences from the baseline with their 95 %% confidence intervals "
+            "paired differences from the baseline with their 95 % confidence intervals "
             "(printed, and DIR/differences.csv). Exit code 0; 2 for bad input (nothing "
             "written)."
         ),

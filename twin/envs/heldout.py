@@ -84,7 +84,7 @@ TEST_SETS: dict[str, TestSet] = {
             "random",
             "random",
             range(TEST_SEEDS_START, TEST_SEEDS_START + 200),
-            "200 random corridors and halls that training never meets (the default)",
+            "200 random corridors and halls that training never meets",
         ),
         TestSet(
             "random-quick",
