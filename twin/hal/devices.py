@@ -236,3 +236,9 @@ class LedSensor(Closing):
         Raises:
             ValueError: the sensor has no LEDs of ``child``.
         """
+
+    def last_image(self) -> CameraImage | None:
+        """The image the last :meth:`observe` found the LEDs in (each pixel at its
+        brightest over the sequence's frames, so that every LED shows lit), for the
+        record; None where the sensor takes no images (or has observed nothing yet)."""
+        return None

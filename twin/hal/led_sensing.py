@@ -13,7 +13,7 @@ from calib.detection import DetectionFailure, DetectorConfig, detect_leds
 from calib.detection.sequence import SwitchingSequence
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds
 from twin.hal.errors import NoFrameError
-from twin.hal.readings import LedObservation
+from twin.hal.readings import CameraImage, LedObservation
 
 SCENE_RETRIES = 2
 """Times a sequence is captured again while an LED comes back ``scene_changed`` (something
@@ -59,6 +59,8 @@ class ImageLedSensor(LedSensor):
         self._config = config if config is not None else DetectorConfig()
         self._line = None if led_line is None else np.asarray(led_line, dtype=float)
         self._retries = scene_retries
+        self._frames: list[CameraImage] = []  # the last observation's kept capture
+        self._taken: list[CameraImage] = []  # the images of the latest capture
 
     @property
     def camera(self) -> str:
@@ -72,6 +74,7 @@ class ImageLedSensor(LedSensor):
         if child not in self._leds:
             raise ValueError(f"no LEDs for child {child!r}; known: {sorted(self._leds)}")
         best = self._capture(child, sequence)
+        kept = self._taken
         frames = best.frames
         for _ in range(self._retries):
             if SCENE_CHANGED not in best.failures:
@@ -79,17 +82,32 @@ class ImageLedSensor(LedSensor):
             again = self._capture(child, sequence)
             frames += again.frames
             if again.found.sum() >= best.found.sum():
-                best = again
+                best, kept = again, self._taken
+        self._frames = kept
         return best if frames == best.frames else dataclasses.replace(best, frames=frames)
 
+    def last_image(self) -> CameraImage | None:
+        """The kept capture's frames of the last observation, each pixel at its brightest
+        (every LED found shows lit), stamped with the last frame's time; None before the
+        first observation or where no frame came."""
+        if not self._frames:
+            return None
+        last = self._frames[-1]
+        image = np.maximum.reduce([f.image for f in self._frames])
+        return CameraImage(last.camera, last.timestamp, image)
+
     def _capture(self, child: str, sequence: SwitchingSequence) -> LedObservation:
-        """One capture of the sequence and what the detector found in it."""
+        """One capture of the sequence and what the detector found in it (its images in
+        ``self._taken``)."""
         leds = self._leds[child]
         frames = []
+        self._taken = []
         try:
             for k, row in enumerate(sequence.pattern):
                 leds.switch([bool(b) for b in row])
-                frames.append(self._camera.capture().image)
+                shot = self._camera.capture()
+                self._taken.append(shot)
+                frames.append(shot.image)
                 if self._interval > 0 and k + 1 < len(sequence.pattern):
                     self._clock.sleep(self._interval)
         except NoFrameError:

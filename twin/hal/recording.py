@@ -2,8 +2,9 @@
 
 :func:`recorded` wraps a :class:`Rig`'s devices so that each reading, each command that
 changes the world (a drive, an LED switch, a pose fix) and each device failure is handed
-to a :class:`Recorder` before the caller sees it. Images are not recorded (the LED
-observations made from them are). The recording devices are wrappers
+to a :class:`Recorder` before the caller sees it. Images are not records (the LED
+observations made from them are); a recorder that takes them is handed the image of each
+LED observation. The recording devices are wrappers
 (:mod:`twin.hal.wrappers`).
 """
 
@@ -38,7 +39,14 @@ from twin.instruments.errors import InstrumentError
 
 
 class Recorder(Protocol):
-    """Where records go: ``record(topic, record, timestamp)``."""
+    """Where records go: ``record(topic, record, timestamp)``.
+
+    A recorder that also has ``image(camera, image, timestamp)`` is handed, after each LED
+    observation's record, the image the LEDs were found in (a
+    :class:`~twin.hal.readings.CameraImage`: :meth:`~twin.hal.devices.LedSensor.last_image`)
+    at the observation's time: images are not records; a recorder without ``image`` gets
+    none.
+    """
 
     def record(self, topic: str, record: object, timestamp: float) -> None: ...
 
@@ -115,6 +123,11 @@ class _RecordedLedSensor(LedSensorWrapper):
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         obs = self.inner.observe(child, sequence)
         self._recorder.record(f"/camera/{self.camera}/leds", obs, obs.timestamp)
+        take = getattr(self._recorder, "image", None)
+        if take is not None:
+            image = self.inner.last_image()
+            if image is not None:
+                take(self.camera, image, obs.timestamp)
         return obs
 
 

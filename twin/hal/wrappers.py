@@ -20,6 +20,7 @@ from calib.detection.sequence import SwitchingSequence
 from twin.closing import Closing
 from twin.hal.devices import Camera, Clock, LedSensor, MarkerLeds, MobileBase, TotalStation
 from twin.hal.readings import (
+    CameraImage,
     DriveResult,
     LedObservation,
     LedSwitch,
@@ -119,6 +120,9 @@ class LedSensorWrapper(_Wrapper[LedSensor], LedSensor):
 
     def observe(self, child: str, sequence: SwitchingSequence) -> LedObservation:
         return self.inner.observe(child, sequence)
+
+    def last_image(self) -> CameraImage | None:
+        return self.inner.last_image()
 
 
 D = TypeVar("D")

@@ -129,6 +129,24 @@ class McapRecorder(Closing):
             if self._count % self.flush_every == 0:
                 self.flush()
 
+    def image(self, camera: str, image: Any, timestamp: float) -> None:
+        """With a Foxglove stream, write the Foxglove messages of ``camera``'s image (a
+        :class:`~twin.hal.readings.CameraImage`, the one its last LED observation was found
+        in) at ``timestamp``, s; without one, nothing (images are not records)."""
+        if self._foxglove is None or self._closed:
+            return
+        assert self._foxglove_channels is not None
+        t = float(timestamp)
+        time_ns = _time_ns(t, f"/camera/{camera}")
+        topic = f"/camera/{camera}/image"
+        with deferred_interrupts():
+            try:
+                messages = self._foxglove.image(camera, image.image, t)
+            except (ValueError, KeyError, TypeError, IndexError) as exc:
+                messages = self._foxglove.unreadable(topic, t, exc)
+            for fox_topic, message in messages:
+                self._foxglove_channels.write(fox_topic, message, time_ns)
+
     def _write_foxglove(self, topic: str, data: dict[str, Any], t: float, time_ns: int) -> None:
         """The Foxglove messages of one record, at its time. A record they cannot be drawn
         from (a field missing or of another type) is said so on Foxglove's log; the record

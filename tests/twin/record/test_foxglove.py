@@ -111,6 +111,8 @@ def test_the_log_holds_foxglove_channels_with_their_schemas(run):
     assert set(messages) == set(TOPICS)  # the smoke run gives every channel
     for topic, items in messages.items():
         assert {name for name, *_ in items} == {TOPICS[topic]}
+    # The geometric fidelity takes no images: no camera's image channels.
+    assert not [t for t in messages if t.startswith("/foxglove/camera/")]
     assert {e.id for _, _, m, _ in messages["/foxglove/scene/site"] for e in m.entities} == {
         "floor",
         "walls",
@@ -377,9 +379,9 @@ def layout_topics(node: Any) -> tuple[set[str], set[str], set[str]]:
     frames: set[str] = set()
     if isinstance(node, dict):
         for key, value in node.items():
-            if key == "topics":
+            if key in ("topics", "annotations"):
                 topics |= set(value)
-            elif key == "topicToRender":
+            elif key in ("topicToRender", "imageTopic", "calibrationTopic"):
                 topics.add(value)
             elif key == "value" and isinstance(value, str):
                 paths.add(value)
@@ -408,7 +410,10 @@ def test_the_shipped_layout_names_only_what_a_log_holds(run):
     fox = foxglove(out / "log.mcap")
     records = read_log(out / "log.mcap")
     assert topics
-    assert topics <= set(fox) | set(records.topics)
+    # A camera's image topics are in a render run's log (test_foxglove_images.py).
+    images = {t for t in topics if t.startswith("/foxglove/camera/")}
+    assert len(images) == 3
+    assert topics - images <= set(fox) | set(records.topics)
     assert len(paths) == 4
     for path in paths:
         topic, rest = re.fullmatch(r"(/[^.]+)\.(.+)", path).groups()

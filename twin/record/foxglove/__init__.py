@@ -7,6 +7,8 @@ with a :class:`FoxgloveStream`), or from an older log by ``twin replay --foxglov
   cameras (as built and as calibrated).
 - :mod:`.scene`: ``foxglove.SceneUpdate`` entities: the site, the route and stations, the
   cameras' view frustums, the LED points, the parent's covariance, the lines of sight.
+- :mod:`.images`: a camera's ``foxglove.CameraCalibration``, ``foxglove.CompressedImage``
+  and ``foxglove.ImageAnnotations`` (the LEDs found, the measured points projected).
 - :mod:`.stream`: :class:`FoxgloveStream`, the records in, the messages out (topics in
   :data:`TOPICS`), the same for a run and for a replay.
 

@@ -5,9 +5,10 @@ SDK's layout classes (:mod:`foxglove.layouts`).
   topic and both instrument tracks;
 - plots of the parent's position variances at each CPS fix (``/campaign/parent_fix``, m²)
   and of each calibration's reprojection sigma (``/campaign/calibration``, px);
-- Foxglove's log panel on ``/foxglove/log``.
-
-The log holds no camera images yet, so the layout has no image panel.
+- Foxglove's log panel on ``/foxglove/log``;
+- an image panel of :data:`IMAGED` (the camera every scenario of the project has): its
+  images (render fidelity, and a rig's cameras) with the LEDs found and the measured LED
+  points projected through its calibration, as last calibrated.
 
 ``python -m twin.record.foxglove.layout`` prints it (the shipped file is its output).
 """
@@ -19,6 +20,7 @@ import json
 import foxglove.layouts as fl
 
 from twin.record.foxglove import frames
+from twin.record.foxglove.images import camera_topics
 from twin.record.foxglove.stream import (
     CALIBRATION,
     LOG,
@@ -34,6 +36,8 @@ from twin.record.foxglove.stream import (
 
 FOLLOWED = frames.robot_frame("parent")
 """The frame the 3D panel follows."""
+IMAGED = "cam1"
+"""The camera of the image panel (Foxglove's panel settings choose another)."""
 
 
 def layout() -> fl.Layout:
@@ -72,9 +76,21 @@ def layout() -> fl.Layout:
         config=fl.PlotConfig(paths=[fl.PlotSeries(value=f"{CALIBRATION}.sigma_px", label="sigma")]),
     )
     log = fl.LogPanel(title="campaign log", config=fl.LogConfig(topic_to_render=LOG))
+    topics = camera_topics(IMAGED)
+    image = fl.ImagePanel(
+        title=f"{IMAGED}: LEDs found (green), measured points projected (magenta)",
+        config=fl.ImageConfig(
+            image_mode=fl.ImageModeConfig(
+                image_topic=topics["image"],
+                calibration_topic=topics["calibration"],
+                annotations={topics["annotations"]: fl.ImageAnnotationSettings(visible=True)},
+            ),
+        ),
+    )
     right = fl.SplitContainer(
         direction="column",
         items=[
+            fl.SplitItem(content=image),
             fl.SplitItem(content=variances),
             fl.SplitItem(content=errors),
             fl.SplitItem(content=log),

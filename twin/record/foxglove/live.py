@@ -32,7 +32,9 @@ _STOP = object()
 
 class LiveServer(Closing):
     """Foxglove's WebSocket server (``foxglove.websocket.v1``), serving every topic of
-    :data:`~twin.record.foxglove.stream.TOPICS` from the moment it starts.
+    :data:`~twin.record.foxglove.stream.TOPICS` from the moment it starts, and each
+    camera's topics (:func:`~twin.record.foxglove.images.camera_topics`) from their first
+    message on.
 
     Args:
         host: the address to listen on (localhost by default).
@@ -88,6 +90,9 @@ class LiveServer(Closing):
             return
         time_ns = max(0, round(float(t) * 1e9))  # as the log's times
         for topic, message in messages:
+            if topic not in self._channels:  # a camera's topics, from its first message on
+                schema = type(message).get_schema().name
+                self._channels[topic] = _channel(topic, schema, self._context)
             self.offered += 1
             try:
                 self._queue.put_nowait((topic, message, time_ns))
@@ -131,6 +136,11 @@ class LiveStream:
         out = self.stream.feed(topic, data, t)
         if out:
             self.server.offer(out, t)
+        return out
+
+    def image(self, camera: str, image: Any, t: float) -> list[Message]:
+        out = self.stream.image(camera, image, t)
+        self.server.offer(out, t)
         return out
 
     def unreadable(self, topic: str, t: float, exc: Exception) -> list[Message]:

@@ -2,7 +2,9 @@
 recorder as each record is written) and for a replay (fed by the log's messages).
 
 Each record is taken in its logged form (:func:`twin.record.codec.encode`: a dict of JSON
-values), so a run and a replay of its log give the same messages.
+values), so a run and a replay of its log give the same messages. The images the LEDs were
+found in are not records: a run hands them in (:meth:`FoxgloveStream.image`), a replay has
+none.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from foxglove.messages import Log, LogLevel, Pose, PosesInFrame
 
 from calib.io.camera_files import camera_from_dict
-from twin.record.foxglove import frames, scene
+from twin.record.foxglove import frames, images, scene
 from twin.record.foxglove.convert import timestamp, vector3, yaw_quaternion
 
 TF = "/foxglove/tf"
@@ -39,7 +41,9 @@ TOPICS: Mapping[str, str] = {
     TRACK_ESTIMATE: "foxglove.PosesInFrame",
     TRACK_TRUTH: "foxglove.PosesInFrame",
 }
-"""Every topic a stream writes, with its schema."""
+"""Every topic a stream writes, with its schema, but for each camera's image topics
+(:func:`twin.record.foxglove.images.camera_topics`: from :meth:`FoxgloveStream.image`, so
+only where the run took images)."""
 
 # The run's topics this stream reads (written here, not imported, so that the recorder
 # does not load the campaign).
@@ -81,6 +85,12 @@ class FoxgloveStream:
         self._counts: dict[str, int] = {}
         self._track: list[Pose] = []
         self._truth_track: list[Pose] = []
+        self._observed: dict[str, dict[str, Any]] = {}  # each camera's last LED observation
+        self._imaged: dict[str, tuple[float, dict[str, Any]]] = {}  # its last image's
+        self._camera_frames: dict[str, str] = {}  # the frame each camera's images are in
+        self._built: dict[str, Any] = {}  # each camera as built (its logged model)
+        self._calibrated: dict[str, tuple[str, Any]] = {}  # as last calibrated: frame, model
+        self._with_images: set[str] = set()  # the cameras that gave an image
 
     def feed(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         """The messages that the record ``data`` (its logged form) on ``topic`` at ``t`` s
@@ -92,8 +102,34 @@ class FoxgloveStream:
         handler = _HANDLERS.get(topic)
         if handler is None and topic.startswith("/base/"):
             handler = FoxgloveStream._base
+        elif handler is None and topic.startswith("/camera/") and topic.endswith("/leds"):
+            handler = FoxgloveStream._observation
         if handler is not None:
             out += handler(self, topic, data, t)
+        return out
+
+    def image(self, camera: str, image: Any, t: float) -> list[Message]:
+        """The image (an (H, W) or (H, W, 3) array, DN) that ``camera``'s last LED
+        observation (its record fed just before) found the LEDs in, at ``t`` s: the JPEG
+        and its annotations (the LEDs found, labelled by their index)."""
+        topics = images.camera_topics(camera)
+        frame = self._camera_frames.get(camera, f"camera/{camera}")
+        out: list[Message] = []
+        if camera not in self._with_images:  # its calibrations, from its first image on
+            self._with_images.add(camera)
+            if camera in self._built:
+                built = images.calibration(
+                    t, frames.camera_frame(camera, "built"), self._built[camera]
+                )
+                out.append((topics["calibration_built"], built))
+            if camera in self._calibrated:
+                calibrated = images.calibration(t, *self._calibrated[camera])
+                out.append((topics["calibration"], calibrated))
+        out.append((topics["image"], images.compressed_image(t, frame, image)))
+        obs = self._observed.get(camera)
+        if obs is not None:
+            self._imaged[camera] = (t, obs)
+            out.append((topics["annotations"], self._annotations(t, obs)))
         return out
 
     def unreadable(self, topic: str, t: float, exc: Exception) -> list[Message]:
@@ -116,6 +152,8 @@ class FoxgloveStream:
 
     def _truth_camera(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         name = str(data["name"])
+        self._camera_frames[name] = frames.camera_frame(name, "built")
+        self._built[name] = data["camera"]
         return self._camera(t, name, "built", data["camera"], scene.BUILT, {"truth": "true"})
 
     def _calibration(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
@@ -131,7 +169,52 @@ class FoxgloveStream:
             recoloured.append(scene.points_entity(t, id_, leds, res))
         if recoloured:
             out.append((SCENE_POINTS, scene.update(recoloured)))
+        topics = images.camera_topics(name)
+        frame = frames.camera_frame(name, f"visit{visit}")
+        self._camera_frames.setdefault(name, frame)
+        self._calibrated[name] = (frame, data["camera_model"])
+        if name in self._with_images:  # no image, no image channels
+            out.append((topics["calibration"], images.calibration(t, frame, data["camera_model"])))
+        for _, p in self._points.get((name, visit), []):
+            imaged = p.get("_image")
+            if imaged is None:
+                continue
+            stamp, obs = imaged
+            leds = np.asarray(_nan(p["leds_world"]), dtype=float).reshape(-1, 3)
+            pixels = np.asarray(_nan(p["pixels"]), dtype=float).reshape(-1, 2)
+            projected = camera.project_or_nan(leds)
+            note = self._note(obs) + f"; visit {visit} calibrated"
+            marks = self._annotations(stamp, obs, note, pixels, projected)
+            out.append((topics["annotations"], marks))
         return out
+
+    def _observation(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        """A camera's LED observation: kept for the image that follows it."""
+        camera = str(data["camera"])
+        self._observed[camera] = dict(data)
+        self._imaged.pop(camera, None)
+        return []
+
+    @staticmethod
+    def _note(obs: Mapping[str, Any]) -> str:
+        failures = list(obs["failures"])
+        found = sum(f is None for f in failures)
+        missed = sorted({str(f) for f in failures if f is not None})
+        note = f"{obs['child']}: {found} of {len(failures)} LEDs found"
+        return note + (f" ({', '.join(missed)})" if missed else "")
+
+    def _annotations(
+        self,
+        t: float,
+        obs: Mapping[str, Any],
+        note: str | None = None,
+        pixels: Any = None,
+        projected: Any = None,
+    ) -> Any:
+        detected = np.asarray(_nan(obs["pixels"]), dtype=float).reshape(-1, 2)
+        labels = [f"LED {k}" for k in range(len(detected))]
+        text = self._note(obs) if note is None else note
+        return images.annotations(t, detected, labels, text, pixels, projected)
 
     def _camera(
         self, t: float, name: str, which: str, model: Any, c: Any, meta: Mapping[str, Any]
@@ -183,8 +266,12 @@ class FoxgloveStream:
         camera, visit = str(data["camera"]), int(data["visit"])
         n = self._count(f"point/{camera}/{visit}")
         id_ = f"{data['dataset']}/{camera}/visit{visit}/{n}"
+        imaged = self._imaged.pop(camera, None)
         if data["dataset"] == "visit":
-            self._points.setdefault((camera, visit), []).append((id_, dict(data)))
+            kept = dict(data)
+            if imaged is not None:  # the image of the observation this point is made of
+                kept["_image"] = imaged
+            self._points.setdefault((camera, visit), []).append((id_, kept))
         leds = np.asarray(_nan(data["leds_world"]), dtype=float).reshape(-1, 3)
         return [(SCENE_POINTS, scene.update([scene.points_entity(t, id_, leds, None)]))]
 
