@@ -33,6 +33,7 @@ from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "scenarios" / "smoke.toml"
+WHICH = ("estimate", "truth")
 
 
 @pytest.fixture(scope="module")
@@ -108,9 +109,10 @@ def rotation(q: Any) -> np.ndarray:
 def test_the_log_holds_foxglove_channels_with_their_schemas(run):
     out, _ = run
     messages = foxglove(out / "log.mcap")
-    assert set(messages) == set(TOPICS)  # the smoke run gives every channel
+    tracks = {f"/foxglove/track/{c}_{w}" for c in ("child1", "child2") for w in WHICH}
+    assert set(messages) == set(TOPICS) | tracks  # the smoke run gives every channel
     for topic, items in messages.items():
-        assert {name for name, *_ in items} == {TOPICS[topic]}
+        assert {name for name, *_ in items} == {TOPICS.get(topic, "foxglove.PosesInFrame")}
     # The geometric fidelity takes no images: no camera's image channels.
     assert not [t for t in messages if t.startswith("/foxglove/camera/")]
     assert {e.id for _, _, m, _ in messages["/foxglove/scene/site"] for e in m.entities} == {
@@ -352,6 +354,52 @@ def test_a_record_that_cannot_be_drawn_is_logged_and_kept(tmp_path):
     assert line.level == 4  # ERROR
     (tf,) = transforms(messages, "instrument/truth")  # the next record is drawn
     np.testing.assert_allclose(xyz(tf.translation), [1.0, 2.0, 0.0])
+
+
+def test_a_childs_tracks_are_its_placements_and_its_truth(run):
+    out, _ = run
+    messages = foxglove(out / "log.mcap")
+    log = read_log(out / "log.mcap").messages
+    fixes = [m.timestamp for m in log if m.topic == "/campaign/parent_fix"]
+    (end,) = [m.timestamp for m in log if m.topic == "/run/summary"]
+    for child in ("child1", "child2"):
+        placed = [m for m in log if m.topic == f"/base/{child}/set_pose"]
+        truths = [m for m in log if m.topic == "/truth/robot" and m.data["robot"] == child]
+        for which, records in (("estimate", placed), ("truth", truths)):
+            sent = messages[f"/foxglove/track/{child}_{which}"]
+            assert len(sent) <= len(fixes) + 1
+            for _, log_time, track, _ in sent:  # sent at fixes and at the end, whole
+                assert log_time / 1e9 in [*fixes, end]
+                assert track.frame_id == "W"
+                before = [r for r in records if r.timestamp <= log_time / 1e9]
+                assert len(track.poses) == len(before) > 0
+            (*_, last, _) = sent[-1]
+            assert len(last.poses) == len(records) >= 2
+            for p, r in zip(last.poses, records, strict=True):
+                if which == "estimate":
+                    expected, yaw = [r.data["x"], r.data["y"], -0.40], r.data["yaw"]
+                    turn = Rotation.from_euler("z", yaw).as_matrix()
+                else:
+                    expected, turn = r.data["translation"], r.data["rotation"]
+                np.testing.assert_allclose(xyz(p.position), expected, rtol=0, atol=1e-12)
+                np.testing.assert_allclose(rotation(p.orientation), turn, atol=1e-9)
+
+
+def test_the_prisms_and_leds_are_drawn_on_each_child(run):
+    from twin.scenario import load_scenario
+
+    out, _ = run
+    marker = load_scenario(SMOKE).marker.assembly()
+    ((_, log_time, update, _),) = foxglove(out / "log.mcap")["/foxglove/scene/robots"]
+    assert log_time == 0
+    drawn = {e.id: e for e in update.entities}
+    assert set(drawn) == {f"{c}/{w}" for c in ("child1", "child2") for w in WHICH}
+    for id_, e in drawn.items():
+        assert e.frame_id == id_  # the robot's frame: the body frame of the assembly
+        assert e.frame_locked
+        centres = np.array([xyz(s.pose.position) for s in e.spheres])
+        np.testing.assert_array_equal(centres[:3], marker.cubes_body)
+        np.testing.assert_array_equal(centres[3:], marker.leds_body)
 
 
 def test_each_robot_has_its_true_and_estimated_frames(run):

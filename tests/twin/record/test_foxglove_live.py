@@ -134,7 +134,13 @@ def test_a_client_is_advertised_every_channel_with_its_schema(live_run):
     _, code, client, _ = live_run
     assert code == 0
     advertised = {ch["topic"]: ch for ch in client.advertised.values()}
-    assert {t: ch["schemaName"] for t, ch in advertised.items()} == dict(TOPICS)
+    # The children's tracks are advertised from their first message on.
+    tracks = {
+        f"/foxglove/track/{c}_{w}": "foxglove.PosesInFrame"
+        for c in ("child1", "child2")
+        for w in ("estimate", "truth")
+    }
+    assert {t: ch["schemaName"] for t, ch in advertised.items()} == {**TOPICS, **tracks}
     assert all(ch["encoding"] == "protobuf" for ch in advertised.values())
 
 

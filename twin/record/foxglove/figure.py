@@ -3,9 +3,10 @@ matplotlib (not by the Foxglove app): a top view and a 3D view of the site, the 
 stations, the cameras' frustums (as built and as calibrated), the LED points coloured by
 their residual, the parent's covariance ellipsoids and the failed lines of sight.
 
-Each entity is drawn as the log's last message on its topic left it (as Foxglove shows it
-at the end of the log); the lines of sight that expire (the shots that succeeded) are
-left out. Reading the protobuf messages needs ``mcap-protobuf-support`` (the dev extra).
+Each entity in W is drawn as the log's last message on its topic left it (as Foxglove shows
+it at the end of the log); those locked to a robot's frame (its marker assembly) and the
+lines of sight that expire (the shots that succeeded) are left out. Reading the protobuf
+messages needs ``mcap-protobuf-support`` (the dev extra).
 
 ``python -m twin.record.foxglove.figure LOG.mcap OUT.png`` draws one.
 """
@@ -73,6 +74,8 @@ def read_scene(path: str | Path) -> Scene:
             else:
                 latest.pop((topic, d.id), None)
         for e in update.entities:
+            if e.frame_id != "W":  # locked to a robot: it moves (the markers)
+                continue
             expires = e.HasField("lifetime") and (e.lifetime.seconds or e.lifetime.nanos)
             if expires:  # a line of sight of a shot that succeeded: gone by the end
                 latest.pop((topic, e.id), None)

@@ -2,7 +2,7 @@
 SDK's layout classes (:mod:`foxglove.layouts`).
 
 - a 3D panel, fixed frame W, following the parent (``parent/estimate``), with every scene
-  topic and both instrument tracks;
+  topic, both instrument tracks and the children's tracks (:data:`CHILDREN`);
 - plots of the parent's position variances at each CPS fix (``/campaign/parent_fix``, m²)
   and of each calibration's reprojection sigma (``/campaign/calibration``, px);
 - Foxglove's log panel on ``/foxglove/log``;
@@ -28,14 +28,18 @@ from twin.record.foxglove.stream import (
     SCENE_CAMERAS,
     SCENE_COVARIANCE,
     SCENE_POINTS,
+    SCENE_ROBOTS,
     SCENE_SIGHTS,
     SCENE_SITE,
     TRACK_ESTIMATE,
     TRACK_TRUTH,
+    track_topic,
 )
 
 FOLLOWED = frames.robot_frame("parent")
 """The frame the 3D panel follows."""
+CHILDREN = ("child1", "child2")
+"""The children whose tracks the 3D panel shows (the names every scenario gives them)."""
 IMAGED = "cam1"
 """The camera of the image panel (Foxglove's panel settings choose another)."""
 
@@ -44,13 +48,27 @@ def layout() -> fl.Layout:
     """The layout: the 3D panel on the left, the plots and the log on the right."""
     scene = {
         topic: fl.BaseRendererSceneUpdateTopicSettings(visible=True)
-        for topic in (SCENE_SITE, SCENE_CAMERAS, SCENE_POINTS, SCENE_COVARIANCE, SCENE_SIGHTS)
+        for topic in (
+            SCENE_SITE,
+            SCENE_CAMERAS,
+            SCENE_POINTS,
+            SCENE_COVARIANCE,
+            SCENE_SIGHTS,
+            SCENE_ROBOTS,
+        )
     }
     tracks = {
         TRACK_ESTIMATE: fl.BaseRendererPosesTopicSettings(
             visible=True, type="line", line_width=0.02
         ),
         TRACK_TRUTH: fl.BaseRendererPosesTopicSettings(visible=True, type="line", line_width=0.01),
+        **{
+            track_topic(child, which): fl.BaseRendererPosesTopicSettings(
+                visible=True, type="line", line_width=width
+            )
+            for child in CHILDREN
+            for which, width in (("estimate", 0.02), ("truth", 0.01))
+        },
     }
     three_d = fl.ThreeDeePanel(
         title="campaign (W, following the parent)",

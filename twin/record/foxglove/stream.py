@@ -17,8 +17,8 @@ import numpy as np
 from foxglove.messages import Log, LogLevel, Pose, PosesInFrame
 
 from calib.io.camera_files import camera_from_dict
-from twin.record.foxglove import frames, images, scene
-from twin.record.foxglove.convert import timestamp, vector3, yaw_quaternion
+from twin.record.foxglove import frames, images, markers, scene
+from twin.record.foxglove.convert import pose, timestamp, vector3, yaw_quaternion
 
 TF = "/foxglove/tf"
 SCENE_SITE = "/foxglove/scene/site"
@@ -29,6 +29,7 @@ SCENE_SIGHTS = "/foxglove/scene/lines_of_sight"
 LOG = "/foxglove/log"
 TRACK_ESTIMATE = "/foxglove/track/instrument_estimate"
 TRACK_TRUTH = "/foxglove/track/instrument_truth"
+SCENE_ROBOTS = "/foxglove/scene/robots"
 
 TOPICS: Mapping[str, str] = {
     TF: "foxglove.FrameTransforms",
@@ -40,10 +41,19 @@ TOPICS: Mapping[str, str] = {
     LOG: "foxglove.Log",
     TRACK_ESTIMATE: "foxglove.PosesInFrame",
     TRACK_TRUTH: "foxglove.PosesInFrame",
+    SCENE_ROBOTS: "foxglove.SceneUpdate",
 }
-"""Every topic a stream writes, with its schema, but for each camera's image topics
+"""Every topic a stream writes, with its schema, but for each child's tracks
+(:func:`track_topic`) and each camera's image topics
 (:func:`twin.record.foxglove.images.camera_topics`: from :meth:`FoxgloveStream.image`, so
 only where the run took images)."""
+
+
+def track_topic(robot: str, which: str) -> str:
+    """The topic of a child's track, ``which`` ``estimate`` or ``truth``
+    (``foxglove.PosesInFrame``)."""
+    return f"/foxglove/track/{robot}_{which}"
+
 
 # The run's topics this stream reads (written here, not imported, so that the recorder
 # does not load the campaign).
@@ -60,6 +70,7 @@ STAGE = "/campaign/stage"
 SKIPPED = "/campaign/skipped_visit"
 SHOT = "/total_station/shot"
 SHOT_FAILURE = "/total_station/failure"
+SUMMARY = "/run/summary"
 INSTRUMENT_HEIGHT_M = 0.40
 """The floor below W without a scenario (the instrument's usual height), m."""
 
@@ -91,6 +102,9 @@ class FoxgloveStream:
         self._built: dict[str, Any] = {}  # each camera as built (its logged model)
         self._calibrated: dict[str, tuple[str, Any]] = {}  # as last calibrated: frame, model
         self._with_images: set[str] = set()  # the cameras that gave an image
+        self.parent = scenario.robots.parent.name if scenario is not None else "parent"
+        self._tracks: dict[tuple[str, str], list[Pose]] = {}  # the children's, by frame
+        self._shown: dict[tuple[str, str], int] = {}  # poses of each track last sent
 
     def feed(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         """The messages that the record ``data`` (its logged form) on ``topic`` at ``t`` s
@@ -146,6 +160,13 @@ class FoxgloveStream:
         if sc is None:
             return []
         out: list[Message] = [(SCENE_SITE, scene.update(scene.site_entities(sc)))]
+        marker = sc.marker.assembly()
+        drawn = [
+            markers.marker_entity(0.0, child.name, which, marker)
+            for child in sc.robots.children
+            for which in ("truth", "estimate")
+        ]
+        out.append((SCENE_ROBOTS, scene.update(drawn)))
         if sc.space.map is not None:
             out.append((TF, frames.transforms([frames.map_transform(sc.space.map.pose)])))
         return out
@@ -233,10 +254,26 @@ class FoxgloveStream:
         return [(TF, tf), (TRACK_TRUTH, self._poses(t, self._truth_track))]
 
     def _truth_robot(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
-        frame = frames.robot_frame(str(data["robot"]), "truth")
+        robot = str(data["robot"])
+        frame = frames.robot_frame(robot, "truth")
         rotation = np.asarray(data["rotation"], dtype=float).reshape(3, 3)
         tf = frames.transform(t, frame, data["translation"], rotation)
+        if robot != self.parent:
+            track = self._tracks.setdefault((robot, "truth"), [])
+            track.append(pose(data["translation"], rotation))
         return [(TF, frames.transforms([tf]))]
+
+    def _child_tracks(self, t: float) -> list[Message]:
+        """Each child's tracks that grew since they were last sent, whole."""
+        out: list[Message] = []
+        for (robot, which), track in self._tracks.items():
+            if self._shown.get((robot, which)) != len(track):
+                self._shown[(robot, which)] = len(track)
+                out.append((track_topic(robot, which), self._poses(t, track)))
+        return out
+
+    def _summary(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
+        return self._child_tracks(t)
 
     def _parent_fix(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         xyz, yaw = np.asarray(data["translation"], dtype=float), float(data["yaw"])
@@ -248,7 +285,7 @@ class FoxgloveStream:
         ellipsoid = scene.ellipsoid_entity(t, f"fix{int(data['index'])}", xyz, cov)
         if ellipsoid is not None:
             out.append((SCENE_COVARIANCE, scene.update([ellipsoid])))
-        return out
+        return out + self._child_tracks(t)
 
     def _base(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
         """A robot's odometry, a drive's result or a pose the campaign set."""
@@ -258,8 +295,12 @@ class FoxgloveStream:
         x, y, yaw = (odometry.get(k) for k in ("x", "y", "yaw"))
         if not all(isinstance(v, int | float) for v in (x, y, yaw)):
             return []
-        frame = frames.robot_frame(str(odometry["robot"]))
+        robot = str(odometry["robot"])
+        frame = frames.robot_frame(robot)
         tf = frames.transform(t, frame, (x, y, self.floor_z), float(yaw))
+        if topic.endswith("/set_pose") and robot != self.parent:  # placed from a measurement
+            track = self._tracks.setdefault((robot, "estimate"), [])
+            track.append(_yaw_pose(np.array([x, y, self.floor_z], dtype=float), float(yaw)))
         return [(TF, frames.transforms([tf]))]
 
     def _point(self, topic: str, data: Mapping[str, Any], t: float) -> list[Message]:
@@ -374,4 +415,5 @@ _HANDLERS = {
     EVENT: FoxgloveStream._log,
     STAGE: FoxgloveStream._log,
     SKIPPED: FoxgloveStream._log,
+    SUMMARY: FoxgloveStream._summary,
 }
