@@ -1,12 +1,14 @@
-"""What the Foxglove channels cost: ``twin run`` of the hall at the geometric fidelity with
-and without them, in pairs (their order alternating), the median over the pairs.
+"""What the Foxglove channels cost: ``twin run`` with and without them, in pairs (their
+order alternating), the median over the pairs: the hall at the geometric fidelity, or, with
+``--fidelity render``, the smoke room at the render fidelity (its channels then hold each
+data stop's camera image).
 
 Run: ``.venv/bin/python benchmarks/bench_foxglove.py [--pairs N] [--fidelity F]
-[--scenario FILE]``
+[--scenario FILE]`` (the render pairs of the smoke room take about 40 s a run).
 
-Reports each run's wall time and log size, the medians and the ratio, checks that both
-runs of a pair give the same calibrations, and lists the Foxglove channels of the last
-run's log with their message counts.
+Reports each run's wall time, CPU time and log size, the medians and the ratios, checks
+that both runs of a pair give the same calibrations, and lists the Foxglove channels of
+the last run's log with their message counts and bytes.
 """
 
 from __future__ import annotations
@@ -28,6 +30,10 @@ from twin.run.runner import run_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 HALL = ROOT / "scenarios" / "paper_hall.toml"
+SMOKE = ROOT / "scenarios" / "smoke.toml"
+DEFAULT_SCENARIO = {"geometric": HALL, "render": SMOKE}
+"""The scenario of each fidelity, unless ``--scenario`` says: the hall's render run lasts
+too long to be paired five times."""
 
 
 def one_run(
@@ -47,22 +53,26 @@ def one_run(
     return wall, (folder / "log.mcap").stat().st_size, results, cpu
 
 
-def channel_counts(log: Path) -> Counter:
-    """Messages by (topic, schema) of the Foxglove channels of a log."""
+def channel_counts(log: Path) -> tuple[Counter, Counter]:
+    """Messages and their bytes by (topic, schema) of the Foxglove channels of a log."""
     counts: Counter = Counter()
+    sizes: Counter = Counter()
     with open(log, "rb") as f:
-        for schema, channel, _ in make_reader(f).iter_messages():
+        for schema, channel, message in make_reader(f).iter_messages():
             if channel.message_encoding == "protobuf":
                 counts[channel.topic, schema.name] += 1
-    return counts
+                sizes[channel.topic, schema.name] += len(message.data)
+    return counts, sizes
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--pairs", type=int, default=5)
     parser.add_argument("--fidelity", default="geometric")
-    parser.add_argument("--scenario", type=Path, default=HALL)
+    parser.add_argument("--scenario", type=Path, default=None)
     args = parser.parse_args()
+    if args.scenario is None:
+        args.scenario = DEFAULT_SCENARIO.get(args.fidelity, HALL)
     console = Console()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -76,7 +86,7 @@ def main() -> None:
             rows.append((pair[True][:2], pair[False][:2], same, pair[True][3], pair[False][3]))
             walls = f"{pair[True][0]:.2f} s / {pair[False][0]:.2f} s"
             console.print(f"pair {k}: with / without {walls}; same results: {same}")
-        counts = channel_counts(Path(tmp) / f"{args.pairs - 1}-on" / "log.mcap")
+        counts, sizes = channel_counts(Path(tmp) / f"{args.pairs - 1}-on" / "log.mcap")
     table = Table(title=f"{args.scenario.name}, {args.fidelity}: with and without Foxglove")
     columns = ("pair", "with, s", "without, s", "with, MB", "without, MB", "same results")
     for column in (*columns, "with, CPU s", "without, CPU s"):
@@ -100,13 +110,19 @@ def main() -> None:
         "median", f"{on:.2f}", f"{off:.2f}", "", "", "", f"{cpu_on:.2f}", f"{cpu_off:.2f}"
     )
     console.print(table)
-    console.print(f"wall time with / without: {on / off:.3f}; CPU time: {cpu_on / cpu_off:.3f}")
+    size_on = statistics.median(r[0][1] for r in rows)
+    size_off = statistics.median(r[1][1] for r in rows)
+    console.print(
+        f"wall time with / without: {on / off:.3f}; CPU time: {cpu_on / cpu_off:.3f}; "
+        f"log size: {size_on / 1e6:.2f} MB / {size_off / 1e6:.2f} MB = {size_on / size_off:.3f}"
+    )
     channels = Table(title="Foxglove channels of the log")
     channels.add_column("topic")
     channels.add_column("schema")
     channels.add_column("messages")
+    channels.add_column("kB")
     for (topic, schema), n in sorted(counts.items()):
-        channels.add_row(topic, schema, str(n))
+        channels.add_row(topic, schema, str(n), f"{sizes[topic, schema] / 1e3:.1f}")
     console.print(channels)
 
 
