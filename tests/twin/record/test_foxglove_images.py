@@ -10,27 +10,32 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import twin.sim  # noqa: F401  (headless OpenGL before mujoco is imported)
+from calib.camera import TsaiCamera
 from calib.detection.sequence import SwitchingSequence
-from calib.io.camera_files import camera_from_dict
+from calib.io.camera_files import camera_from_dict, camera_to_dict
 from twin.hal.devices import Camera
 from twin.hal.led_sensing import ImageLedSensor
 from twin.hal.readings import CameraImage
 from twin.hal.recording import _RecordedLedSensor
-from twin.record import read_log
+from twin.record import McapRecorder, read_log
+from twin.record.foxglove import FoxgloveStream
 from twin.record.foxglove.images import (
     DETECTED,
     PROJECTED,
     RESIDUAL,
     TOPIC_SCHEMAS,
     annotation_px,
+    calibration,
     camera_topics,
     jpeg,
 )
 from twin.run.runner import run_scenario
 
-from .test_foxglove import ROOT, foxglove, layout_topics, seconds
+from .test_foxglove import ROOT, decoded, foxglove, layout_topics, seconds
 
 SMALL = """
 [campaign]
@@ -244,3 +249,43 @@ def test_an_annotation_is_the_pixel_plus_half_a_pixel():
     np.testing.assert_array_equal(
         annotation_px([[0.0, 0.0], [319.0, 239.0]]), [[0.5, 0.5], [319.5, 239.5]]
     )
+
+
+def test_an_image_that_cannot_be_drawn_is_logged_and_the_run_goes_on(tmp_path):
+    path = tmp_path / "log.mcap"
+    observed = {"camera": "cam1", "child": "child1", "pixels": [[1.0, 2.0]], "failures": [None]}
+    with McapRecorder(path, foxglove=FoxgloveStream()) as recorder:
+        recorder.record("/camera/cam1/leds", observed, 1.0)
+        recorder.image("cam1", CameraImage("cam1", 1.0, np.zeros((4, 4), np.float32)), 1.0)
+        recorder.image("cam1", CameraImage("cam1", 2.0, np.zeros((4, 4), np.uint8)), 2.0)
+    messages = foxglove(path)
+    (line,) = [m for _, _, m, _ in messages["/foxglove/log"]]
+    assert "cannot draw the record on /camera/cam1/image: ValueError" in line.message
+    assert "uint8 or uint16, got float32" in line.message
+    assert [t for _, t, _, _ in messages[TOPICS["image"]]] == [2_000_000_000]
+    assert [m.topic for m in read_log(path).messages] == ["/camera/cam1/leds"]  # no record
+
+
+def test_a_recorder_without_foxglove_takes_no_image(tmp_path):
+    path = tmp_path / "log.mcap"
+    with McapRecorder(path) as recorder:
+        recorder.image("cam1", CameraImage("cam1", 1.0, np.zeros((4, 4), np.uint8)), 1.0)
+    assert foxglove(path) == {}
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    f=st.floats(200.0, 2000.0),
+    sx=st.floats(0.9, 1.1),
+    cx=st.floats(100.0, 220.0),
+    cy=st.floats(80.0, 160.0),
+    kappa1=st.floats(-3e-7, 3e-7),
+)
+def test_a_calibrations_k_is_the_tsai_intrinsics(f, sx, cx, cy, kappa1):
+    camera = TsaiCamera(f, cx, cy, kappa1, sx, np.eye(3), np.array([0.0, 0.0, 1.0]))
+    message = decoded(calibration(2.5, "camera/c/visit1", camera_to_dict(camera)))
+    k = np.reshape(message.K, (3, 3))
+    np.testing.assert_array_equal(k, [[sx * f, 0, cx], [0, f, cy], [0, 0, 1]])
+    assert len(message.D) == {"plumb_bob": 5, "rational_polynomial": 8}[message.distortion_model]
+    assert message.frame_id == "camera/c/visit1"
+    assert seconds(message.timestamp) == 2.5
