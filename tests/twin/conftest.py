@@ -26,3 +26,24 @@ def serve() -> Iterator[Callable[..., object]]:
     finally:
         for server in servers:
             server.close()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _site_tables_in_a_temporary_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The site tables of the ``stands`` planner go to a temporary cache folder, never to
+    the user's (the tests that read the variable set their own)."""
+    import os
+
+    from twin.envs.stand_cache import CACHE_ENV
+    from twin.envs.stand_site import clear_sites
+
+    saved = os.environ.get(CACHE_ENV)
+    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("cache"))
+    try:
+        yield
+    finally:
+        clear_sites()  # saved now, into the temporary folder, not when the process ends
+        if saved is None:
+            os.environ.pop(CACHE_ENV, None)
+        else:
+            os.environ[CACHE_ENV] = saved

@@ -18,11 +18,14 @@ once per site and process (:class:`StandSite`, :func:`site_for`).
 
 from __future__ import annotations
 
+import atexit
 import itertools
 import math
+import time
 from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,10 +48,15 @@ from twin.campaign.plan.route import RoutePath
 from twin.campaign.strategy import DataStops, Leg, NextLeg, NextVisit, Visit
 from twin.envs.moves import MoveLayout, formation_settings
 from twin.envs.site_stations import START, site_stations
+from twin.envs.stand_cache import read_table, write_table
 from twin.scenario.schema import Scenario
 
 SITES = 8
 """Sites whose tables a process keeps (the least recently used is dropped)."""
+
+SAVE_EVERY = 10.0
+"""Seconds between two saves of a table that grows (it is also saved when the process
+ends, or drops or closes it)."""
 
 
 @dataclass(frozen=True)
@@ -141,20 +149,32 @@ class StandSite:
         self._distances: dict[int, dict[str, float]] = {}
         self._here: dict[int, str | None] = {}
         self._headings: dict[int, float] = {}
-        self._session = PlanSession(scenario, "paper")
-        try:
-            self._record(self._session)
-        except BaseException:
-            self._session.close()
-            raise
+        self._recorder: PlanSession | None = None  # the paper's run, answered as needed
+        self._prober: PlanSession | None = None  # the robots' truths on the legs
+        self.data: dict[str, StationData] = {}
+        self._overhead: float | None = None
+        self.recorded = False  # the paper's run is over: every station's data are known
+        saved = read_table(scenario, layout)
+        if saved is not None:
+            self._restore(saved)
+        else:
+            self._open_recorder()
+        self._saved_size = self._size() if saved is not None else -1
+        self._saved_at = time.monotonic()
         self._build_stands()
 
     # -- the site's paper run ---------------------------------------------------------------
-    def _record(self, session: PlanSession) -> None:
-        """Run the paper's campaign: its start, each station's data, the legs' overhead."""
+    def _open_recorder(self) -> None:
+        """Start the paper's campaign and run its start (the reference data)."""
+        session = self._recorder = PlanSession(self.scenario, "paper")
         start: list[Step] = []
-        while not session.done and not isinstance(session.question, NextVisit):
-            start.extend(session.answer(session.suggested()))
+        try:
+            while not session.done and not isinstance(session.question, NextVisit):
+                start.extend(session.answer(session.suggested()))
+        except BaseException:
+            session.close()
+            self._recorder = None
+            raise
         self.plan: BatchPlan = session.plan
         self.start = tuple(start)
         self.start_time = session.time
@@ -165,26 +185,56 @@ class StandSite:
         # The reference data moved the children: the first leg drives from their last stops.
         self.drive_time(where, ((s.robot, s.believed[:2]) for s in start if isinstance(s, Drive)))
         self.ready_xy = {name: xy.copy() for name, xy in where.items()}
-        self.data: dict[str, StationData] = {}
-        overheads: list[float] = []
-        goal: object = None
-        while not session.done:
-            question, answer = session.question, session.suggested()
-            before, moved = session.time, where.copy()
-            steps = session.answer(answer)
-            driving = self.drive_time(
-                where, ((s.robot, s.believed[:2]) for s in steps if isinstance(s, Drive))
-            )
-            if isinstance(question, NextVisit):
-                goal = answer
-            elif isinstance(question, NextLeg) and isinstance(answer, Leg):
-                overheads.append(session.time - before - driving)
-            elif isinstance(question, DataStops) and isinstance(goal, Visit):
-                name = self._station_of(goal)
-                if name is not None and name not in self.data and _calibrates(steps):
-                    stops = {r: xy for r, xy in where.items() if not np.array_equal(xy, moved[r])}
-                    self.data[name] = StationData(steps, session.time - before, stops)
-        self.leg_overhead = float(np.mean(overheads)) if overheads else 0.0
+        self._where = where
+        self._goal: object = None
+
+    def _record_more(self) -> bool:
+        """Answer the paper's run's next question (recording a station's data, the first
+        leg's overhead); False once the run is over."""
+        if self.recorded:
+            return False
+        if self._recorder is None:
+            self._open_recorder()  # a table read back before its run was over: run it again
+        session = self._recorder
+        assert session is not None
+        if session.done:
+            self.recorded = True
+            session.close()
+            self._recorder = None
+            return False
+        where = self._where
+        question, answer = session.question, session.suggested()
+        before, moved = session.time, where.copy()
+        steps = session.answer(answer)
+        driving = self.drive_time(
+            where, ((s.robot, s.believed[:2]) for s in steps if isinstance(s, Drive))
+        )
+        if isinstance(question, NextVisit):
+            self._goal = answer
+        elif isinstance(question, NextLeg) and isinstance(answer, Leg):
+            if self._overhead is None:
+                self._overhead = session.time - before - driving
+        elif isinstance(question, DataStops) and isinstance(self._goal, Visit):
+            name = self._station_of(self._goal)
+            if name is not None and name not in self.data and _calibrates(steps):
+                stops = {r: xy for r, xy in where.items() if not np.array_equal(xy, moved[r])}
+                self.data[name] = StationData(steps, session.time - before, stops)
+        return True
+
+    def station_data(self, name: str) -> StationData | None:
+        """A station's data as the paper's run took them (its run is answered until it
+        reaches them), or None where that run did not calibrate there."""
+        while name not in self.data and self._record_more():
+            pass
+        return self.data.get(name)
+
+    @property
+    def leg_overhead(self) -> float:
+        """The shots' time of a leg, s: the first leg of the paper's run (0 where it had
+        none)."""
+        while self._overhead is None and self._record_more():
+            pass
+        return 0.0 if self._overhead is None else self._overhead
 
     def drive_time(
         self,
@@ -275,7 +325,12 @@ class StandSite:
         key = (robot, tuple(np.round(pose, 9).tolist()))
         found = self._truths.get(key)
         if found is None:
-            found = self._truths[key] = self._session.truth_at(robot, pose)
+            if self._prober is None:
+                # A session of its own, whose campaign never runs: every probe starts from
+                # the robots at their start, whatever the paper's run has done so far.
+                self._prober = PlanSession(self.scenario, "paper")
+            found = self._truths[key] = self._prober.truth_at(robot, pose)
+            self._changed()
         return found
 
     def leg(
@@ -324,6 +379,7 @@ class StandSite:
             stops[parent] = pose[:2]
             leg = TableLeg(tuple(steps), stops)
         self.legs[key] = leg
+        self._changed()
         return leg
 
     def data_steps(self, station: str, visit: int) -> tuple[Step, ...]:
@@ -332,13 +388,54 @@ class StandSite:
         key = (station, visit)
         steps = self._data_steps.get(key)
         if steps is None:
-            steps = tuple(_renumbered(s, visit) for s in self.data[station].steps)
+            data = self.station_data(station)
+            assert data is not None
+            steps = tuple(_renumbered(s, visit) for s in data.steps)
             self._data_steps[key] = steps
         return steps
 
+    # -- on disk ---------------------------------------------------------------------------
+    _SAVED = (
+        "plan", "start", "start_time", "speed", "start_xy", "ready_xy", "data", "_overhead",
+        "recorded", "legs", "_truths",
+    )  # fmt: skip
+
+    def state(self) -> dict[str, Any]:
+        """What the table's file keeps (:mod:`twin.envs.stand_cache`)."""
+        return {name: getattr(self, name) for name in self._SAVED}
+
+    def _restore(self, state: dict[str, Any]) -> None:
+        for name in self._SAVED:
+            setattr(self, name, state[name])
+        self.plan = replace(self.plan, scenario=self.scenario)
+        self._where: dict[str, NDArray[np.float64]] = {}
+
+    def _size(self) -> int:
+        return len(self.legs) + len(self._truths) + len(self.data) + self.recorded
+
+    def _changed(self) -> None:
+        """Save the table when it grew and the last save is :data:`SAVE_EVERY` s old."""
+        if time.monotonic() - self._saved_at >= SAVE_EVERY:
+            self.save()
+
+    def save(self) -> None:
+        """Write the table to its file (:mod:`twin.envs.stand_cache`) if it grew since it
+        was read or last written."""
+        size = self._size()
+        if size != self._saved_size:
+            write_table(self.scenario, self.layout, self.state())
+            self._saved_size = size
+        self._saved_at = time.monotonic()
+
     def close(self) -> None:
-        """Free the site's world."""
-        self._session.close()
+        """Save the table and free the site's worlds."""
+        try:
+            self.save()
+        finally:
+            for session in (self._recorder, self._prober):
+                if session is not None:
+                    session.close()
+            self._recorder = self._prober = None
 
 
 def _calibrates(steps: tuple[Step, ...]) -> bool:
@@ -356,8 +453,15 @@ def site_for(scenario: Scenario, layout: MoveLayout) -> StandSite:
         site = _SITES[key] = StandSite(scenario, layout)
         while len(_SITES) > SITES:
             _SITES.popitem(last=False)[1].close()
+        if len(_SITES) == 1:
+            atexit.register(_save_sites)
     _SITES.move_to_end(key)
     return site
+
+
+def _save_sites() -> None:
+    for site in _SITES.values():
+        site.save()
 
 
 def clear_sites() -> None:

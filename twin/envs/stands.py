@@ -152,7 +152,8 @@ class StandPlanner(EpisodePlanner):
             self.visits[camera] = self.visits.get(camera, 0) + 1
             self.calibrated_at[camera] = self.travelled
             steps = self.site.data_steps(here, self.visits[camera])
-            data = self.site.data[here]
+            data = self.site.station_data(here)
+            assert data is not None
             self.time += data.time
             self._where.update({r: xy.copy() for r, xy in data.stops.items()})
         else:
@@ -199,8 +200,8 @@ class StandPlanner(EpisodePlanner):
                 self.order,
                 here,
                 here is not None
-                and here in self.site.data
                 and camera is not None
+                and self.site.station_data(here) is not None
                 and not calibrated_since_moved(self.calibrated_at, camera, self.travelled),
                 self.site.distances(self._stand).__getitem__,
                 self.budget_m - self.travelled,
