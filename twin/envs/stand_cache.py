@@ -33,6 +33,10 @@ CACHE_ENV = "TWIN_CACHE_DIR"
 FORMAT = 1
 """The tables' file format: part of each file's name and checked in it."""
 
+MAX_BYTES = 1 << 30
+"""Bytes the tables' folder may hold: past it, the files least recently written are
+removed (random sites each leave a table)."""
+
 
 def cache_dir() -> Path:
     """The folder of the site tables (:data:`CACHE_ENV`, see there)."""
@@ -112,7 +116,25 @@ def write_table(scenario: Scenario, layout: MoveLayout, state: dict[str, Any]) -
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
+        _prune(path.parent, keep=path)
     except OSError as error:
         warnings.warn(f"{path}: the site's table cannot be saved ({error})", stacklevel=2)
         return None
     return path
+
+
+def _prune(folder: Path, keep: Path) -> None:
+    """Remove the tables least recently written until the folder holds at most
+    :data:`MAX_BYTES` (never ``keep``)."""
+    files = []
+    for entry in os.scandir(folder):
+        if entry.name.endswith(".pkl") and entry.is_file():
+            stat = entry.stat()
+            files.append((stat.st_mtime, stat.st_size, Path(entry.path)))
+    total = sum(size for _, size, _ in files)
+    for _, size, path in sorted(files):
+        if total <= MAX_BYTES:
+            break
+        if path != keep:
+            path.unlink(missing_ok=True)
+            total -= size

@@ -168,3 +168,23 @@ def test_the_paper_run_is_answered_as_far_as_asked_and_the_same_whatever_the_ord
     for site in (ahead, other, partial):
         site.close()
     assert 0 < overhead < 2.0
+
+
+def test_the_folder_keeps_at_most_its_size_the_newest_first(cache, monkeypatch):
+    import os
+
+    from twin.envs import stand_cache
+
+    cache.mkdir(parents=True)
+    for k in range(3):
+        (cache / f"old{k}.pkl").write_bytes(b"x" * 1000)
+        os.utime(cache / f"old{k}.pkl", (k, k))
+    monkeypatch.setattr(stand_cache, "MAX_BYTES", 2500)
+    scenario = load_scenario(SMOKE)
+    site = StandSite(scenario, LAYOUT)
+    site.close()
+    path = table_path(scenario, LAYOUT)
+    assert path.exists()  # the newest is kept, even alone past the size
+    assert not (cache / "old0.pkl").exists()
+    left = sum(p.stat().st_size for p in cache.glob("*.pkl"))
+    assert left <= 2500 or sorted(cache.glob("*.pkl")) == [path]
