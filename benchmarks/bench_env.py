@@ -25,6 +25,14 @@ planner, measured in the same run; the absolute figures (steps/s on one core, th
 being 1000 with random moves) are printed with the machine's load average. Resets are
 counted in the time, not as steps.
 
+``--fresh``: the speed a user meets, each figure in a process of its own on one core
+(``taskset -c 0``, BLAS threads 1): random masked play in the first S seconds after the
+first reset returns, on the hall and on random sites, with the ``stands`` planner and a
+cache folder of the site tables (:mod:`twin.envs.stand_cache`) that is empty (``cold``) or
+was filled by an earlier process (``cached``: one that played for ``--fill`` seconds); the
+same processes with the code of ``--against`` (a checkout, to give a ratio measured under
+the same load).
+
 Then ``agreement`` (``--episodes N``, default 300): for each planner, N episodes of the
 paper's policy played step by step in the environment against ``twin montecarlo --fidelity
 batch --strategy paper`` with N trials: per visit the RMS camera position error and their
@@ -34,7 +42,10 @@ ratio (the issue asks for 15 %).
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -136,6 +147,101 @@ def measure(
         envs.close()
 
 
+def first_seconds(n: int, scenario: str, planner: str, seconds: float) -> dict[str, float]:
+    """Random masked play of ``n`` environments (one environment alone, or the batched
+    vector) in the first ``seconds`` after the first reset returns: env-steps (a vector
+    step of n counts n), and how long the reset took, s."""
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    if n == 1:
+        env = CpsCampaignEnv(scenario, planner=planner)
+        _, info = env.reset(seed=0)
+        reset = time.perf_counter() - start
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            _, _, terminated, truncated, info = env.step(
+                int(rng.choice(np.flatnonzero(info["action_mask"])))
+            )
+            steps += 1
+            if terminated or truncated:
+                _, info = env.reset()
+        env.close()
+    else:
+        envs = gymnasium.make_vec(ENV_ID, num_envs=n, scenario=scenario, planner=planner).unwrapped
+        _, info = envs.reset(seed=list(range(n)))
+        reset = time.perf_counter() - start
+        restarting = np.zeros(n, dtype=bool)
+        steps, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            actions = np.zeros(n, dtype=np.int64)
+            for k in range(n):
+                mask = info["action_mask"][k]
+                if not restarting[k] and mask.any():
+                    actions[k] = rng.choice(np.flatnonzero(mask))
+            _, _, terminated, truncated, info = envs.step(actions)
+            steps += int((~restarting).sum())
+            restarting = terminated | truncated
+        envs.close()
+    elapsed = time.perf_counter() - start
+    return {"steps": steps, "seconds": elapsed, "rate": steps / elapsed, "reset": reset}
+
+
+def _child(code: Path, cache: Path, n: int, scenario: str, planner: str, seconds: float):
+    """:func:`first_seconds` in a fresh process on core 0 with ``code``'s package."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(code),
+        "TWIN_CACHE_DIR": str(cache),
+        "OMP_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+        "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
+    }
+    argv = [sys.executable, __file__, "--child", str(n), scenario, planner, str(seconds)]
+    out = subprocess.run(
+        ["taskset", "-c", "0", *argv], env=env, capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def fresh(seconds: float, fill: float, against: Path | None, console: Console) -> None:
+    """The ``--fresh`` table (see the module)."""
+    table = Table(title=f"random masked play, the first {seconds:g} s of a fresh process")
+    for name in ("code", "site", "cache", "envs", "reset s", "steps/s", "x before", "load"):
+        table.add_column(name, justify="right")
+    hall = str(HALL)
+    with tempfile.TemporaryDirectory() as tmp:
+        filled, empty = Path(tmp) / "filled", Path(tmp) / "empty"
+        start = time.perf_counter()
+        _child(ROOT, filled, 64, hall, "stands", fill)  # an earlier process fills the table
+        console.print(f"filled the hall's table in {time.perf_counter() - start:.0f} s")
+        cases = [
+            ("hall", hall, "cached", 64),
+            ("hall", hall, "cached", 1),
+            ("hall", hall, "cold", 64),
+            ("random", "random", "cold", 64),
+            ("random", "random", "cold", 1),
+        ]
+        for site, scenario, state, n in cases:
+            before = None
+            if against is not None:
+                old = Path(tmp) / "old"
+                before = _child(against, old, n, scenario, "stands", seconds)
+            cache = filled if state == "cached" else empty
+            if state == "cold":
+                cache = Path(tempfile.mkdtemp(dir=tmp))
+            now = _child(ROOT, cache, n, scenario, "stands", seconds)
+            ratio = "" if before is None else f"{now['rate'] / before['rate']:.1f}"
+            if before is not None:
+                table.add_row("before", site, state, str(n), f"{before['reset']:.1f}",
+                              f"{before['rate']:.0f}", "", load())  # fmt: skip
+            table.add_row("now", site, state, str(n), f"{now['reset']:.1f}",
+                          f"{now['rate']:.0f}", ratio, load())  # fmt: skip
+            console.print(f"{site} {state} {n}: {now} (before: {before})")
+    console.print(table)
+    console.print("targets: cached 2000 (64) and 300 (1) steps/s; cold 1000 (64)")
+
+
 def agreement(episodes: int, console: Console, planner: str = "campaign") -> None:
     """The paper's policy in the environment against ``twin montecarlo --fidelity batch``."""
     env = CpsCampaignEnv(HALL, planner=planner)
@@ -180,8 +286,19 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=15.0)
     parser.add_argument("--episodes", type=int, default=300)
     parser.add_argument("--planner", nargs="+", default=["campaign", "stands"])
+    parser.add_argument("--fresh", action="store_true", help="fresh processes only")
+    parser.add_argument("--fill", type=float, default=120.0)
+    parser.add_argument("--against", type=Path, help="a checkout of the code before")
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child:
+        n, scenario, planner, seconds = args.child
+        print(json.dumps(first_seconds(int(n), scenario, planner, float(seconds))))
+        return
     console = Console(width=120)
+    if args.fresh:
+        fresh(args.seconds, args.fill, args.against, console)
+        return
     table = Table(title=f"camnet/CpsCampaign-v0 on the paper's hall ({args.seconds:g} s each)")
     columns = (
         "planner", "vector", "envs", "policy", "steps", "cold /s", "warm /s", "from s",
