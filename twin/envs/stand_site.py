@@ -75,12 +75,23 @@ class Stand:
     station: str | None = None
 
 
-@dataclass(frozen=True)
+@dataclass
 class TableLeg:
-    """A leg found: its steps and each robot's stop (for the clock)."""
+    """A leg found: each robot's drive (the children's in order, then the parent's), the
+    children it fixes, each robot's stop (for the clock), and its steps once it is taken
+    (:meth:`StandSite.leg_steps`: the robots' truths are probed only then).
 
-    steps: tuple[Step, ...]
+    Attributes:
+        drives: (robot, (3,) planar pose x m, y m, yaw rad in W) in order.
+        fixed: the children the parent fixes at the end.
+        stops: each robot's (2,) stop, m.
+        steps: the plan's steps, or None before the leg is first taken.
+    """
+
+    drives: tuple[tuple[str, NDArray[np.float64]], ...]
+    fixed: tuple[str, ...]
     stops: dict[str, NDArray[np.float64]]
+    steps: tuple[Step, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -367,20 +378,32 @@ class StandSite:
         leg = None
         if found is not None:
             order = self.children_order(direction)
-            steps: list[Step] = []
+            drives: list[tuple[str, NDArray[np.float64]]] = []
             stops: dict[str, NDArray[np.float64]] = {}
             for child, stop in zip(order, found[1], strict=True):
-                pose = np.array([*stop.xy, stop.yaw])
-                steps += [Drive(child, pose, self.truth(child, pose)), Place(child)]
-                stops[child] = pose[:2]
-            pose = np.array([*to.xy, heading])
-            steps += [Drive(parent, pose, self.truth(parent, pose))]
-            steps += [Fix(tuple(c for c in self.plan.children if c in stops))]
-            stops[parent] = pose[:2]
-            leg = TableLeg(tuple(steps), stops)
+                drives.append((child, np.array([*stop.xy, stop.yaw])))
+                stops[child] = drives[-1][1][:2]
+            drives.append((parent, np.array([*to.xy, heading])))
+            stops[parent] = drives[-1][1][:2]
+            fixed = tuple(c for c in self.plan.children if c in stops)
+            leg = TableLeg(tuple(drives), fixed, stops)
         self.legs[key] = leg
         self._changed()
         return leg
+
+    def leg_steps(self, leg: TableLeg) -> tuple[Step, ...]:
+        """A leg's steps: each child's drive and placement, the parent's drive, the fix
+        (the robots' truths probed the first time)."""
+        if leg.steps is None:
+            steps: list[Step] = []
+            for robot, pose in leg.drives:
+                steps.append(Drive(robot, pose, self.truth(robot, pose)))
+                if robot != self.plan.parent:
+                    steps.append(Place(robot))
+            steps.append(Fix(leg.fixed))
+            leg.steps = tuple(steps)
+            self._changed()
+        return leg.steps
 
     def data_steps(self, station: str, visit: int) -> tuple[Step, ...]:
         """The steps of the data set and calibration at ``station``, as visit ``visit`` of

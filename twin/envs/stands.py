@@ -135,7 +135,7 @@ class StandPlanner(EpisodePlanner):
         elif self.decision == LEG:
             leg = self._legs[action]
             assert leg is not None
-            steps = leg.steps
+            steps = self.site.leg_steps(leg)
             to = self._travel[min(self._cells(action), len(self._travel)) - 1]
             self.travelled += float(np.linalg.norm(to.xy - self._stand.xy))
             drives = self.site.drive_time(self._where, leg.stops.items())
