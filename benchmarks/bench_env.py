@@ -69,7 +69,7 @@ HALL = ROOT / "scenarios" / "paper_hall.toml"
 
 
 def _make() -> CpsCampaignEnv:
-    return CpsCampaignEnv(HALL)
+    return CpsCampaignEnv(HALL, planner="campaign")
 
 
 def _make_stands() -> CpsCampaignEnv:

@@ -6,9 +6,10 @@ reset seed (:mod:`twin.envs.sites`). A step is one decision of the campaign's st
 interface (:mod:`twin.campaign.strategy`), taken by the agent (:mod:`twin.envs.moves`):
 the formation and length of the next CPS leg; between travels, calibrate the camera whose
 station the group stands at, travel to a camera's station, return to the start, or end.
-The campaign itself runs the decisions without noise (:mod:`twin.envs.planner`), and one
-trial of the batch fidelity (:class:`twin.batch.execute.BatchRun`) executes its steps with
-the scenario's noise: the estimates, covariances and errors the agent observes and is
+A table of the site (the default ``stands`` planner, :mod:`twin.envs.stands`) or the
+campaign itself (``campaign``, :mod:`twin.envs.planner`) runs the decisions without noise,
+and one trial of the batch fidelity (:class:`twin.batch.execute.BatchRun`) executes its
+steps with the scenario's noise: the estimates, covariances and errors the agent observes and is
 rewarded by are that trial's.
 
 Action masks: ``info["action_mask"]`` and :meth:`CpsCampaignEnv.action_masks` (sb3-contrib's
@@ -92,8 +93,9 @@ _EPISODE_STATE = frozenset({"episode", "_free", "_free_for"})
 
 PLANNERS = ("campaign", "stands")
 """How an environment plays its campaign: ``campaign`` runs the campaign itself for each
-new sequence of moves (:mod:`twin.envs.planner`); ``stands`` reads the moves from a table of
-the site, for speed (:mod:`twin.envs.stands`, with what it leaves out)."""
+new sequence of moves (:mod:`twin.envs.planner`: faithful, for evaluation); ``stands`` (the
+default, for training) reads the moves from a table of the site, for speed
+(:mod:`twin.envs.stands`, with what it leaves out)."""
 
 RANDOM = "random"
 """``scenario`` for a random site at each reset."""
@@ -169,8 +171,10 @@ class CpsCampaignEnv(gym.Env):
             second, default :data:`COST_PER_S`).
         uncalibrated_error_mm: the error counted for a camera not calibrated, mm.
         layout: the moves (default :class:`MoveLayout` with ``max_stations``).
-        planner: one of :data:`PLANNERS`: ``campaign`` (default: the campaign itself) or
-            ``stands`` (a table of the site: fast enough for random moves).
+        planner: one of :data:`PLANNERS`: ``stands`` (default: a table of the site, fast
+            enough for training with random moves, its tables kept on disk by
+            :mod:`twin.envs.stand_cache`) or ``campaign`` (the campaign itself: the faithful
+            one, which ``twin strategies`` evaluates with by default).
     """
 
     metadata = {  # noqa: RUF012  (Gymnasium's convention: a class attribute)
@@ -192,7 +196,7 @@ class CpsCampaignEnv(gym.Env):
         cost_per_s: float = COST_PER_S,
         uncalibrated_error_mm: float = 1000.0,
         layout: MoveLayout | None = None,
-        planner: str = "campaign",
+        planner: str = "stands",
     ) -> None:
         if planner not in PLANNERS:
             raise ValueError(f"planner must be one of {PLANNERS}, got {planner!r}")
