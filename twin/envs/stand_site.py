@@ -22,6 +22,7 @@ import atexit
 import itertools
 import math
 import time
+import weakref
 from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -466,28 +467,36 @@ def _calibrates(steps: tuple[Step, ...]) -> bool:
 
 
 _SITES: OrderedDict[tuple[str, MoveLayout], StandSite] = OrderedDict()
+_LIVE: weakref.WeakValueDictionary[tuple[str, MoveLayout], StandSite] = (
+    weakref.WeakValueDictionary()
+)  # every table a planner still holds, kept or not
 
 
 def site_for(scenario: Scenario, layout: MoveLayout) -> StandSite:
-    """The process's table of a site (made on first use: a run of the paper's campaign)."""
+    """The process's table of a site (read from its file or made on first use). The
+    process keeps the :data:`SITES` used last; one dropped is saved, and lives on while a
+    planner holds it (as many tables as the episodes' sites are open at once)."""
     key = (scenario.model_dump_json(), layout)
-    site = _SITES.get(key)
+    site = _SITES.get(key) or _LIVE.get(key)
     if site is None:
-        site = _SITES[key] = StandSite(scenario, layout)
-        while len(_SITES) > SITES:
-            _SITES.popitem(last=False)[1].close()
-        if len(_SITES) == 1:
-            atexit.register(_save_sites)
+        site = _LIVE[key] = StandSite(scenario, layout)
+    _SITES[key] = site
     _SITES.move_to_end(key)
+    while len(_SITES) > SITES:
+        _SITES.popitem(last=False)[1].save()
     return site
 
 
+@atexit.register
 def _save_sites() -> None:
-    for site in _SITES.values():
+    for site in {id(s): s for s in (*_SITES.values(), *_LIVE.values())}.values():
         site.save()
 
 
 def clear_sites() -> None:
-    """Forget every site's table."""
-    while _SITES:
-        _SITES.popitem()[1].close()
+    """Save and forget every site's table (a planner that holds one goes on with it)."""
+    sites = {id(s): s for s in (*_SITES.values(), *_LIVE.values())}
+    _SITES.clear()
+    _LIVE.clear()
+    for site in sites.values():
+        site.close()
