@@ -188,3 +188,17 @@ def test_the_folder_keeps_at_most_its_size_the_newest_first(cache, monkeypatch):
     assert not (cache / "old0.pkl").exists()
     left = sum(p.stat().st_size for p in cache.glob("*.pkl"))
     assert left <= 2500 or sorted(cache.glob("*.pkl")) == [path]
+
+
+def test_a_table_dropped_from_the_kept_ones_is_saved_and_lives_on_while_held(cache, monkeypatch):
+    from twin.envs import stand_site
+
+    monkeypatch.setattr(stand_site, "SITES", 1)
+    scenario = load_scenario(SMOKE)
+    other = with_values(
+        scenario, {"campaign.formation.step": 0.9 * scenario.campaign.formation.step}
+    )
+    held = site_for(scenario, LAYOUT)
+    site_for(other, LAYOUT)  # drops the first from the process's one
+    assert table_path(scenario, LAYOUT).exists()  # saved when dropped
+    assert site_for(scenario, LAYOUT) is held  # still held: not built again
