@@ -67,6 +67,7 @@ from twin.planning.site_stations import (
     StopsSeen,
     gives_data_from,
     site_stations,
+    visible_from,
 )
 from twin.planning.stations import (
     Station,
@@ -250,8 +251,11 @@ def plan_site(
             cameras, chosen, pose, boxed, station_free, child_free, floor_z, avoid, np.zeros(2)
         )
         cameras, names, wanted = _without(floor, hidden, cameras, wanted, unreachable)
-    partial = {c: st.visible for c, st in stations.items() if st.visible < STATION_NEED}
     cams_w = {c["name"]: camera_in_world(c, pose, floor_z) for c in cameras}
+    # What each station sees in the boxes laid in W, as the scenario's check computes it:
+    # a few per cent off what the search found in the map's frame.
+    seen_w = {c: visible_from(boxed, cams_w[c], st.xy, floor_z) for c, st in stations.items()}
+    partial = {c: v for c, v in seen_w.items() if v < STATION_NEED}
     reach_w = pose.geometry2world(parent_free)
     graph = clear_of_boxes(route_graph(floor, pose, reach_w, stations), boxed)
     points = [np.zeros(2), *(stations[c].xy for c in stations)]

@@ -31,6 +31,7 @@ from twin.scenario.loader import validate_model
 from twin.scenario.map_space import map_obstacle
 from twin.scenario.robots import INSTRUMENT_HEIGHT
 from twin.scenario.schema import CameraConfig, MarkerConfig, Noise, Space
+from twin.scenario.visibility import stations_visibility
 
 STATION_NEED = 0.5
 """Least fraction of a camera's floor view a station must see (the scenario's default
@@ -182,6 +183,28 @@ def gives_data_from(
     camera = validate_model(CameraConfig, camera_in_world(by_name[name], MapPose(), floor_z)).tsai()
     stops = data_stops(map_space(boxed, floor_z), camera, station, floor_z)
     return not stops or stops_reached(child_free, station, stops, start)
+
+
+def visible_from(
+    boxed: BoxedSpace, camera: Mapping[str, Any], xy: NDArray[np.float64], floor_z: float
+) -> float:
+    """The fraction of ``camera``'s floor view (a cameras file's entry in the W of
+    ``boxed``) the total station sees from a station at (2,) ``xy`` (m, W), as the
+    scenario's check of a visit computes it: the instrument's range and the prisms' mean
+    height of the defaults."""
+    ts = Noise().total_station
+    tsai = validate_model(CameraConfig, camera).tsai()
+    prism = float(np.mean([c[2] for c in MarkerConfig().cubes]))
+    return float(
+        stations_visibility(
+            map_space(boxed, floor_z),
+            tsai,
+            np.asarray(xy, dtype=float).reshape(1, 2),
+            floor_z + INSTRUMENT_HEIGHT,
+            prism,
+            (ts.range_min, ts.range_max),
+        )[0]
+    )
 
 
 def _avoided(
