@@ -208,7 +208,14 @@ class Travel(LegRecovery):
         if before is None:
             return
         obs = self.measure(child)
-        if obs is None or not moved_between(before, obs, self.false_alarm_rate):
+        if obs is None:
+            self.journal.event(
+                "child_unchecked",
+                f"{child} not measured after {mover} drove: whether it was pushed is not known",
+                child,
+            )
+            return
+        if not moved_between(before, obs, self.false_alarm_rate):
             return
         if self._another_marker(child, obs):
             return

@@ -124,3 +124,35 @@ def test_without_the_push_no_child_moved(tmp_path):
         HALL, tmp_path, fidelity="geometric", seed=2, report=False, strategy="paper"
     )
     assert results["failures"].get("child_moved", 0) == 0
+
+
+class _Events:
+    def __init__(self) -> None:
+        self.events: list[object] = []
+
+    def record(self, topic: str, record: object, timestamp: float) -> None:
+        if topic == "/campaign/event":
+            self.events.append(record)
+
+
+def test_a_child_the_parent_cannot_measure_again_is_named_unchecked(monkeypatch):
+    # The parent's check shot after the other child drove finds no prism (hidden behind the
+    # child that drove, say): the check is not made, and the log says so.
+    from twin.campaign import Campaign
+    from twin.sim.rig import build_sim_rig
+    from twin.sim.world import build_world
+
+    sc = load_scenario(ROOT / "scenarios" / "smoke.toml")
+    sim = build_sim_rig(build_world(sc), "geometric", seed=5)
+    events = _Events()
+    try:
+        travel = Campaign(sim.rig, sc, events).travel
+        travel.placed["child1"] = _obs([1.0, 0.5, 0.3], 1e-3)
+        monkeypatch.setattr(travel, "measure", lambda child: None)
+        travel.check_stayed("child1", "child2")
+    finally:
+        sim.close()
+    (event,) = events.events
+    assert event.kind == "child_unchecked"
+    assert event.robot == "child1"
+    assert "child1 not measured after child2 drove" in event.message
