@@ -66,3 +66,13 @@ class LegChoices(PaperStrategy):
     def take(self, s_next: float) -> None:
         """The leg to arc length ``s_next`` is taken."""
         self._reached_s = s_next
+
+
+def shorter_than(
+    options: list[tuple[Leg, float] | None], s_now: float, s_failed: float
+) -> list[bool]:
+    """For each of :meth:`LegChoices.options`: whether it is a leg that ends nearer
+    ``s_now`` (the parent's arc length, m) than ``s_failed``, where a leg taken from there
+    failed (the group backed off to ``s_now``)."""
+    reach = abs(s_failed - s_now) - 1e-9
+    return [o is not None and abs(o[1] - s_now) < reach for o in options]

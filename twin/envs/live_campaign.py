@@ -35,7 +35,7 @@ from twin.campaign.strategy import (
     Visit,
 )
 from twin.envs.episode import LEG, VISIT, calibrated_since_moved, visit_mask
-from twin.envs.leg_choices import LegChoices
+from twin.envs.leg_choices import LegChoices, shorter_than
 from twin.envs.moves import MoveLayout
 from twin.envs.site_stations import START, Station, site_stations
 from twin.scenario.schema import Scenario
@@ -92,6 +92,7 @@ class LiveCampaign:
         self.decision: str | None = None
         self.mask = np.zeros(layout.size, dtype=bool)
         self._legs: list[tuple[Leg, float] | None] = []
+        self._taken_s: float | None = None  # where the leg taken last was to end, m
         self.pending: list[Step] = []
         self._advance()
 
@@ -154,6 +155,7 @@ class LiveCampaign:
                 assert chosen is not None
                 leg, s_next = chosen
                 self.strategy.take(s_next)
+                self._taken_s = s_next
                 self._answer(leg)
         elif action == layout.calibrate:
             here = self.here()
@@ -196,8 +198,17 @@ class LiveCampaign:
                     self.pending.extend(session.answer(None))  # there: no leg
                     continue
                 self._legs = self.strategy.options(self.view, question.goal, self.layout)
+                allowed = [leg is not None for leg in self._legs]
+                if question.failed is not None and self._taken_s is not None:
+                    # The leg taken failed and the group backed off: a shorter one, where
+                    # one has room (else the same again, as the campaign's strategy does
+                    # once it has shortened the leg to its shortest).
+                    s_now = self.strategy.position(self.view, question.goal)
+                    if s_now is not None:
+                        shorter = shorter_than(self._legs, s_now[0], self._taken_s)
+                        allowed = shorter if any(shorter) else allowed
                 self.mask[:] = False
-                self.mask[: self.layout.legs] = [leg is not None for leg in self._legs]
+                self.mask[: self.layout.legs] = allowed
                 if not self.mask.any():
                     self.mask[self.layout.end] = True
                 self.decision = LEG
