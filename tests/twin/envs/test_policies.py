@@ -37,7 +37,7 @@ def play(env: CpsCampaignEnv, seed: int, policy: str) -> tuple[list[str], dict]:
 
 @pytest.fixture(scope="module")
 def hall_env():
-    env = CpsCampaignEnv(HALL)
+    env = CpsCampaignEnv(HALL, planner="campaign")  # the campaign itself, not its table
     yield env
     env.close()
 
