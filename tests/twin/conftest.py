@@ -35,7 +35,7 @@ def _site_tables_in_a_temporary_cache(tmp_path_factory: pytest.TempPathFactory) 
     import os
 
     from twin.envs.stand_cache import CACHE_ENV
-    from twin.envs.stand_site import clear_sites
+    from twin.envs.stand_tables import clear_sites
 
     saved = os.environ.get(CACHE_ENV)
     os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("cache"))

@@ -18,12 +18,9 @@ once per site and process (:class:`StandSite`, :func:`site_for`).
 
 from __future__ import annotations
 
-import atexit
 import itertools
 import math
 import time
-import weakref
-from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -51,9 +48,6 @@ from twin.envs.moves import MoveLayout, formation_settings
 from twin.envs.site_stations import START, site_stations
 from twin.envs.stand_cache import read_table, write_table
 from twin.scenario.schema import Scenario
-
-SITES = 8
-"""Sites whose tables a process keeps (the least recently used is dropped)."""
 
 SAVE_EVERY = 10.0
 """Seconds between two saves of a table that grows (it is also saved when the process
@@ -464,39 +458,3 @@ class StandSite:
 
 def _calibrates(steps: tuple[Step, ...]) -> bool:
     return any(isinstance(s, Calibrate) for s in steps)
-
-
-_SITES: OrderedDict[tuple[str, MoveLayout], StandSite] = OrderedDict()
-_LIVE: weakref.WeakValueDictionary[tuple[str, MoveLayout], StandSite] = (
-    weakref.WeakValueDictionary()
-)  # every table a planner still holds, kept or not
-
-
-def site_for(scenario: Scenario, layout: MoveLayout) -> StandSite:
-    """The process's table of a site (read from its file or made on first use). The
-    process keeps the :data:`SITES` used last; one dropped is saved, and lives on while a
-    planner holds it (as many tables as the episodes' sites are open at once)."""
-    key = (scenario.model_dump_json(), layout)
-    site = _SITES.get(key) or _LIVE.get(key)
-    if site is None:
-        site = _LIVE[key] = StandSite(scenario, layout)
-    _SITES[key] = site
-    _SITES.move_to_end(key)
-    while len(_SITES) > SITES:
-        _SITES.popitem(last=False)[1].save()
-    return site
-
-
-@atexit.register
-def _save_sites() -> None:
-    for site in {id(s): s for s in (*_SITES.values(), *_LIVE.values())}.values():
-        site.save()
-
-
-def clear_sites() -> None:
-    """Save and forget every site's table (a planner that holds one goes on with it)."""
-    sites = {id(s): s for s in (*_SITES.values(), *_LIVE.values())}
-    _SITES.clear()
-    _LIVE.clear()
-    for site in sites.values():
-        site.close()

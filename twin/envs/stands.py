@@ -41,7 +41,8 @@ from twin.campaign.plan.formation import sight_margins
 from twin.envs.episode import LEG, VISIT, EpisodePlanner, calibrated_since_moved, visit_mask
 from twin.envs.moves import MoveLayout
 from twin.envs.site_stations import START, Station
-from twin.envs.stand_site import Stand, StandSite, TableLeg, site_for
+from twin.envs.stand_site import Stand, StandSite, TableLeg
+from twin.envs.stand_tables import site_for
 from twin.scenario.schema import Scenario
 
 __all__ = ["STD_STEP", "StandPlanner", "rounded_std"]

@@ -15,7 +15,8 @@ import twin.sim  # noqa: F401  (headless rendering)
 from twin.envs import CpsCampaignEnv
 from twin.envs.moves import MoveLayout
 from twin.envs.stand_cache import CACHE_ENV, FORMAT, cache_dir, read_table, table_path
-from twin.envs.stand_site import StandSite, clear_sites, site_for
+from twin.envs.stand_site import StandSite
+from twin.envs.stand_tables import clear_sites, site_for
 from twin.scenario import load_scenario
 from twin.scenario.overrides import with_values
 
