@@ -192,9 +192,9 @@ def test_the_folder_keeps_at_most_its_size_the_newest_first(cache, monkeypatch):
 
 
 def test_a_table_dropped_from_the_kept_ones_is_saved_and_lives_on_while_held(cache, monkeypatch):
-    from twin.envs import stand_site
+    from twin.envs import stand_tables
 
-    monkeypatch.setattr(stand_site, "SITES", 1)
+    monkeypatch.setattr(stand_tables, "SITES", 1)
     scenario = load_scenario(SMOKE)
     other = with_values(
         scenario, {"campaign.formation.step": 0.9 * scenario.campaign.formation.step}
