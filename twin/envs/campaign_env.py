@@ -393,8 +393,8 @@ class CpsCampaignEnv(gym.Env):
     def plan(self) -> BatchPlan:
         """The campaign the episode has played so far, as the batch fidelity's plan: run it
         for many trials with :class:`twin.batch.execute.BatchRun` (every trial of a policy
-        whose moves do not depend on the noise at once). Its ``planned_visits`` are the
-        visits the campaign calibrated (a visit it gave up is not in the plan's steps)."""
+        whose moves do not depend on the noise at once). A visit the campaign gave up is
+        not in the plan's steps."""
         return self._current("reading the plan").plan
 
     @property

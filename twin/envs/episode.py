@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from twin.batch.execute import BatchRun
-from twin.batch.steps import BatchPlan, Calibrate, Step
+from twin.batch.steps import BatchPlan, Step
 from twin.envs.free_space import FreeSpace
 from twin.envs.knowledge import BatchKnowledge, Knowledge
 from twin.envs.moves import MoveLayout
@@ -273,10 +273,7 @@ class Episode:
     def plan(self) -> BatchPlan:
         """The campaign played so far, as the batch fidelity's plan (see
         :attr:`twin.envs.campaign_env.CpsCampaignEnv.plan`)."""
-        visits = tuple((s.camera, s.visit) for s in self.steps if isinstance(s, Calibrate))
-        return replace(
-            self.planner.plan, steps=tuple(self.steps), strategy="agent", planned_visits=visits
-        )
+        return replace(self.planner.plan, steps=tuple(self.steps), strategy="agent")
 
     def close(self) -> None:
         """Free the planner's campaign."""

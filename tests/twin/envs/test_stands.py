@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import twin.sim  # noqa: F401  (headless rendering)
 from twin.batch.steps import PlanSession
 from twin.envs import ENV_ID, CpsCampaignEnv
-from twin.envs.stand_site import site_for
+from twin.envs.stand_tables import site_for
 from twin.envs.stands import STD_STEP, rounded_std
 from twin.scenario import Scenario, load_scenario
 
